@@ -1,0 +1,106 @@
+"""High-resolution timer: ``hrt_absolute_time()`` and callouts in interrupt context.
+
+On the real FMU the HRT is a free-running 1 MHz timer whose compare interrupt fires callouts.
+Here the board kernel is the timer: callouts are kernel events at interrupt priority, and the
+absolute time is the kernel's virtual time in microseconds (as seen inside the running context,
+so a driver that has been blocked on SPI for 112 us sees the time move by 112 us).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from board.kernel import NS_PER_US, PRIO_ISR, Kernel
+
+__all__ = ["Hrt", "HrtCall"]
+
+
+class HrtCall:
+    """One pending callout (PX4's ``struct hrt_call``): cancel it, or ask whether it fired."""
+
+    __slots__ = ("hrt", "fn", "args", "deadline_us", "period_us", "_entry", "fired")
+
+    def __init__(self, hrt: Hrt, fn: Callable[..., Any], args: tuple, deadline_us: int,
+                 period_us: int) -> None:
+        self.hrt = hrt
+        self.fn = fn
+        self.args = args
+        self.deadline_us = deadline_us
+        self.period_us = period_us
+        self.fired = False
+        self._entry: list | None = None
+
+    def _arm(self) -> None:
+        k = self.hrt.kernel
+        t_ns = max(self.deadline_us * NS_PER_US, k.now_ns)
+        self._entry = k.call_at(t_ns, self._fire, priority=PRIO_ISR)
+
+    def _fire(self) -> None:
+        self.fired = True
+        if self.period_us:
+            self.deadline_us += self.period_us
+            self._arm()
+        else:
+            self._entry = None
+        k = self.hrt.kernel
+        k.in_isr = True
+        try:
+            self.fn(*self.args)
+        finally:
+            k.in_isr = False
+
+    def cancel(self) -> None:
+        if self._entry is not None:
+            self._entry[3] = None
+            self._entry = None
+
+    @property
+    def pending(self) -> bool:
+        return self._entry is not None and self._entry[3] is not None
+
+
+class Hrt:
+    """The board's high-resolution timer."""
+
+    __slots__ = ("kernel",)
+
+    def __init__(self, kernel: Kernel) -> None:
+        self.kernel = kernel
+
+    def absolute_time(self) -> int:
+        """Microseconds since boot, as seen by the running context."""
+        k = self.kernel
+        return (k.now_ns + k.busy_ns) // NS_PER_US
+
+    def elapsed_time(self, then_us: int) -> int:
+        return self.absolute_time() - then_us
+
+    def call_after(self, delay_us: int, fn: Callable[..., Any], *args: Any) -> HrtCall:
+        """Call ``fn(*args)`` in interrupt context ``delay_us`` from now."""
+        if delay_us < 0:
+            raise ValueError(f"hrt call_after: negative delay {delay_us} us")
+        call = HrtCall(self, fn, args, self.absolute_time() + delay_us, 0)
+        call._arm()
+        return call
+
+    def call_at(self, t_us: int, fn: Callable[..., Any], *args: Any) -> HrtCall:
+        """Call ``fn(*args)`` at absolute time ``t_us`` (now, if that has passed, as PX4 does)."""
+        call = HrtCall(self, fn, args, t_us, 0)
+        call._arm()
+        return call
+
+    def call_every(self, delay_us: int, interval_us: int, fn: Callable[..., Any],
+                   *args: Any) -> HrtCall:
+        """Call ``fn(*args)`` after ``delay_us`` and then every ``interval_us``."""
+        if interval_us <= 0:
+            raise ValueError(f"hrt call_every: interval must be positive, got {interval_us} us")
+        if delay_us < 0:
+            raise ValueError(f"hrt call_every: negative delay {delay_us} us")
+        call = HrtCall(self, fn, args, self.absolute_time() + delay_us, interval_us)
+        call._arm()
+        return call
+
+    @staticmethod
+    def cancel(call: HrtCall | None) -> None:
+        if call is not None:
+            call.cancel()
