@@ -1,0 +1,295 @@
+"""GPIO pins and the STM32 EXTI interrupt lines.
+
+A pin is a wire with a level. Whoever drives it (the MCU's own firmware, a device model's
+data-ready output, the outside world through the lockstep endpoint) calls :meth:`Pin.set`; the
+pin then tells its synchronous observers (``on_change``: timers latching a capture, the lockstep
+endpoint forwarding the level to another process) and, through the EXTI block, queues the
+interrupt handler as a kernel event at the edge time with ``PRIO_ISR``.
+
+EXTI rules follow the STM32 reference manuals (RM0090 / RM0041 "EXTI"):
+
+* Line *n* serves pin number *n* of exactly one port: SYSCFG_EXTICR (AFIO_EXTICR on the F1)
+  selects the port. Attaching PB0 while PA0 owns line 0 therefore re-routes the line to PB0,
+  exactly as writing EXTICR would: the earlier pin silently stops interrupting. We do the same,
+  log a warning and count it in :attr:`Gpio.exti_rerouted`, because a driver doing this on real
+  hardware has a bug that is hard to see.
+* An edge sets the line's pending bit; the handler runs once for a pending bit however many
+  edges arrived before it ran (the extra edges are counted in :attr:`ExtiLine.coalesced`).
+
+A pin nobody drives reads its pull level: 1 for ``pull="up"``, 0 for ``"down"`` and, for a
+floating input (``None``), 0 (real floating inputs are undefined; 0 keeps runs deterministic).
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from typing import Any
+
+from board.kernel import PRIO_HW, PRIO_ISR, Kernel
+
+__all__ = ["ExtiLine", "Gpio", "Pin", "PinHandler", "PinListener", "call_in_isr"]
+
+log = logging.getLogger(__name__)
+
+#: ``listener(pin, t_ns, level)``: synchronous observer of a level change.
+PinListener = Callable[["Pin", int, int], None]
+#: ``handler(pin, t_ns)``: EXTI interrupt handler, runs in interrupt context.
+PinHandler = Callable[["Pin", int], None]
+
+_PIN_NAME = re.compile(r"^P([A-K])(\d{1,2})$")
+_PULLS = (None, "up", "down")
+
+
+def call_in_isr(kernel: Kernel, fn: Callable[..., Any], *args: Any) -> Any:
+    """Call ``fn(*args)`` with ``kernel.in_isr`` set, restoring the previous value afterwards.
+
+    Interrupt handlers must know they run in interrupt context (no blocking bus transfers in
+    PX4 style drivers, no sleeping); nested use keeps the flag right.
+    """
+    prev = kernel.in_isr
+    kernel.in_isr = True
+    try:
+        return fn(*args)
+    finally:
+        kernel.in_isr = prev
+
+
+class ExtiLine:
+    """One EXTI line: which pin is routed to it, edge selection, handler and pending state."""
+
+    __slots__ = (
+        "coalesced",
+        "falling",
+        "fired",
+        "handler",
+        "number",
+        "pending",
+        "pin",
+        "rising",
+    )
+
+    def __init__(self, number: int) -> None:
+        self.number = number
+        self.pin: Pin | None = None
+        self.handler: PinHandler | None = None
+        self.rising = False
+        self.falling = False
+        #: True between an edge and the run of its handler (the EXTI_PR bit).
+        self.pending = False
+        #: Edges that arrived while the line was already pending (handled once).
+        self.coalesced = 0
+        #: Handler invocations so far.
+        self.fired = 0
+
+
+class Pin:
+    """A named pin such as ``PD15``; its level is 0 or 1."""
+
+    __slots__ = ("_driven", "_gpio", "_level", "_listeners", "name", "number", "port", "pull")
+
+    def __init__(self, gpio: Gpio, name: str, port: str, number: int, pull: str | None) -> None:
+        self._gpio = gpio
+        self.name = name
+        self.port = port
+        self.number = number
+        self.pull = pull
+        self._driven: int | None = None
+        self._level = 1 if pull == "up" else 0
+        self._listeners: list[PinListener] = []
+
+    @property
+    def level(self) -> int:
+        """The level on the wire now (the driven level, else the pull level)."""
+        return self._level
+
+    @property
+    def driven(self) -> bool:
+        """True if something drives the pin (as opposed to the pull resistor)."""
+        return self._driven is not None
+
+    def value(self) -> int:
+        """MicroPython ``Pin.value()`` spelling of :attr:`level`."""
+        return self._level
+
+    def set(self, level: int, t_ns: int | None = None) -> None:
+        """Drive the pin to ``level`` (0 or 1).
+
+        With ``t_ns`` omitted the change happens at ``kernel.context_ns`` (so a driver that
+        has just spent 100 us on a bus toggles the pin 100 us after its event started). A
+        ``t_ns`` later than that schedules the change as a hardware event at that time, which
+        is how device models and the lockstep endpoint place edges inside a quantum.
+        """
+        if level is not True and level is not False and level not in (0, 1):
+            raise ValueError(f"pin {self.name}: level must be 0 or 1, got {level!r}")
+        self._drive(int(level), t_ns)
+
+    def high(self, t_ns: int | None = None) -> None:
+        """Drive the pin high (``set(1)``)."""
+        self._drive(1, t_ns)
+
+    def low(self, t_ns: int | None = None) -> None:
+        """Drive the pin low (``set(0)``)."""
+        self._drive(0, t_ns)
+
+    def release(self, t_ns: int | None = None) -> None:
+        """Stop driving: the pin falls back to its pull level (open drain, tri-state)."""
+        self._drive(None, t_ns)
+
+    def _drive(self, level: int | None, t_ns: int | None) -> None:
+        kernel = self._gpio.kernel
+        ctx = kernel.now_ns + kernel.busy_ns
+        if t_ns is None:
+            self._apply(level, ctx)
+            return
+        if type(t_ns) is not int:
+            raise ValueError(f"pin {self.name}: t_ns must be an int number of ns, got {t_ns!r}")
+        if t_ns < kernel.now_ns:
+            raise ValueError(
+                f"pin {self.name}: set at t={t_ns} ns is in the past (now={kernel.now_ns} ns)")
+        if t_ns <= ctx:
+            self._apply(level, t_ns)
+        else:
+            kernel.call_at(t_ns, self._apply, level, t_ns, priority=PRIO_HW)
+
+    def _apply(self, level: int | None, t_ns: int) -> None:
+        self._driven = level
+        new = level if level is not None else (1 if self.pull == "up" else 0)
+        if new == self._level:
+            return  # same level again: not an edge
+        self._level = new
+        for listener in tuple(self._listeners):
+            listener(self, t_ns, new)
+        self._gpio._edge(self, t_ns, new)
+
+    def on_change(self, listener: PinListener) -> None:
+        """Call ``listener(pin, t_ns, level)`` synchronously on every level change.
+
+        For observers that are not interrupts: input-capture hardware, the lockstep endpoint,
+        test probes. Listeners run inside whatever context changed the pin.
+        """
+        if not callable(listener):
+            raise TypeError(f"pin {self.name}: on_change listener {listener!r} is not callable")
+        self._listeners.append(listener)
+
+    def remove_listener(self, listener: PinListener) -> None:
+        """Undo :meth:`on_change`; removing an unknown listener raises ValueError."""
+        try:
+            self._listeners.remove(listener)
+        except ValueError:
+            raise ValueError(f"pin {self.name}: listener {listener!r} is not attached") from None
+
+    def attach_interrupt(self, handler: PinHandler, rising: bool = True,
+                         falling: bool = False) -> None:
+        """Shortcut for :meth:`Gpio.attach_interrupt` on this pin."""
+        self._gpio.attach_interrupt(self, handler, rising=rising, falling=falling)
+
+    def detach_interrupt(self) -> None:
+        """Shortcut for :meth:`Gpio.detach` on this pin."""
+        self._gpio.detach(self)
+
+    def __repr__(self) -> str:
+        return f"<Pin {self.name}={self._level}{'' if self.driven else ' (pull)'}>"
+
+
+class Gpio:
+    """All GPIO pins of one MCU plus its 16 EXTI lines."""
+
+    def __init__(self, kernel: Kernel, name: str = "gpio") -> None:
+        self.kernel = kernel
+        self.name = name
+        self._pins: dict[str, Pin] = {}
+        self.exti = [ExtiLine(n) for n in range(16)]
+        #: Times an attach re-routed a line away from another port's pin.
+        self.exti_rerouted = 0
+
+    def pin(self, name: str, pull: str | None = None) -> Pin:
+        """The pin ``name`` (``'PA0'`` … ``'PK15'``), created on first use.
+
+        ``pull`` given on a later call changes the pull resistor (as reconfiguring the GPIO
+        would); omitted, it leaves it alone.
+        """
+        if pull not in _PULLS:
+            raise ValueError(f"{self.name}: pin {name}: pull must be None, 'up' or 'down', "
+                             f"got {pull!r}")
+        pin = self._pins.get(name)
+        if pin is None:
+            m = _PIN_NAME.match(name) if isinstance(name, str) else None
+            if m is None or int(m.group(2)) > 15:
+                raise ValueError(f"{self.name}: {name!r} is not a pin name like 'PD15' "
+                                 f"(port A..K, number 0..15)")
+            pin = Pin(self, name, m.group(1), int(m.group(2)), pull)
+            self._pins[name] = pin
+        elif pull is not None and pull != pin.pull:
+            pin.pull = pull
+            if not pin.driven:
+                pin._apply(None, self.kernel.context_ns)
+        return pin
+
+    def __getitem__(self, name: str) -> Pin:
+        return self.pin(name)
+
+    @property
+    def pins(self) -> dict[str, Pin]:
+        """Pins created so far, by name (a copy)."""
+        return dict(self._pins)
+
+    def _resolve(self, pin: Pin | str, where: str) -> Pin:
+        if isinstance(pin, Pin):
+            if pin._gpio is not self:
+                raise ValueError(f"{self.name}.{where}: {pin.name} belongs to another Gpio")
+            return pin
+        return self.pin(pin)
+
+    def attach_interrupt(self, pin: Pin | str, handler: PinHandler, rising: bool = True,
+                         falling: bool = False) -> None:
+        """Route EXTI line ``pin.number`` to ``pin`` and run ``handler(pin, t_ns)`` on edges.
+
+        Re-routes the line if another port's pin with the same number had it (hardware
+        behaviour, see the module docstring); attaching the same pin again replaces the
+        handler and edge selection.
+        """
+        p = self._resolve(pin, "attach_interrupt")
+        if not callable(handler):
+            raise TypeError(f"{self.name}.attach_interrupt({p.name}): handler {handler!r} "
+                             f"is not callable")
+        if not (rising or falling):
+            raise ValueError(f"{self.name}.attach_interrupt({p.name}): select rising and/or "
+                             f"falling edges")
+        line = self.exti[p.number]
+        if line.pin is not None and line.pin is not p:
+            self.exti_rerouted += 1
+            log.warning("%s: EXTI line %d re-routed from %s to %s; %s no longer interrupts",
+                        self.name, p.number, line.pin.name, p.name, line.pin.name)
+        line.pin = p
+        line.handler = handler
+        line.rising = bool(rising)
+        line.falling = bool(falling)
+
+    def detach(self, pin: Pin | str) -> None:
+        """Disable the pin's EXTI line (a pending handler still runs, as EXTI_PR stays set)."""
+        p = self._resolve(pin, "detach")
+        line = self.exti[p.number]
+        if line.pin is not p:
+            raise ValueError(f"{self.name}.detach: no interrupt attached to {p.name}")
+        line.pin = None
+        line.rising = line.falling = False
+
+    def _edge(self, pin: Pin, t_ns: int, level: int) -> None:
+        line = self.exti[pin.number]
+        if line.pin is not pin or not (line.rising if level else line.falling):
+            return
+        if line.pending:
+            line.coalesced += 1
+            return
+        line.pending = True
+        self.kernel.call_at(t_ns, self._fire, line, pin, t_ns, priority=PRIO_ISR)
+
+    def _fire(self, line: ExtiLine, pin: Pin, t_ns: int) -> None:
+        line.pending = False
+        handler = line.handler
+        if handler is None:
+            return
+        line.fired += 1
+        call_in_isr(self.kernel, handler, pin, t_ns)
