@@ -1,0 +1,88 @@
+"""Ground truth of the world at one instant, in SI units and PX4 frames.
+
+Frames: body FRD (x forward, y right, z down), navigation NED (north, east, down) at the
+vehicle. Vectors are tuples of floats (cheap to build, immutable, no numpy overhead per step).
+
+Conventions worth checking twice:
+
+* ``accel_body_m_s2`` is the specific force at the IMU (what an ideal accelerometer reads):
+  at rest and level it is (0, 0, -g), as PX4's sensor_accel reports (z ~ -9.81 m/s^2).
+* ``gyro_rad_s`` is the body rate relative to inertial space (what a gyro reads; includes the
+  Earth's rotation, 7.3e-5 rad/s).
+* ``q_nb`` (w, x, y, z) is the attitude as PX4's vehicle_attitude.q: the rotation from NED to
+  the body frame, i.e. q = q_yaw * q_pitch * q_roll, and its DCM maps body vectors into NED
+  (v_ned = R(q) v_body). ``euler_rad`` is (roll, pitch, yaw) of the same rotation.
+* ``alt_m`` is the altitude of the IMU above the WGS-84 ellipsoid, which the world uses as
+  mean sea level (no geoid). ``pos_ned_m`` is relative to the start point (north/east on the
+  local tangent plane, down = start altitude - altitude).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Truth", "quat_from_euler", "dcm_nb_from_euler", "rotate_ned_to_body"]
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+@dataclass(slots=True)
+class Truth:
+    """World state at ``t_ns``. Treat as read-only (it may be shared by several readers)."""
+
+    t_ns: int
+    accel_body_m_s2: Vec3  # specific force at the IMU, body FRD
+    gyro_rad_s: Vec3  # inertial angular rate, body FRD
+    q_nb: Quat  # attitude quaternion (w, x, y, z), PX4 convention
+    euler_rad: Vec3  # roll, pitch, yaw
+    mag_body_gauss: Vec3  # Earth field in body FRD
+    pressure_pa: float  # static pressure at the vehicle
+    temperature_c: float  # static air temperature at the vehicle
+    lat_deg: float
+    lon_deg: float
+    alt_m: float  # AMSL (= WGS-84 ellipsoid height here)
+    agl_m: float  # height of the IMU above the terrain
+    pos_ned_m: Vec3  # from the start point
+    vel_ned_m_s: Vec3  # ground velocity
+    airspeed_m_s: float  # true airspeed
+    diff_pressure_pa: float  # dynamic pressure (what a pitot-static sensor measures)
+    battery_v: float
+    battery_a: float
+
+
+def quat_from_euler(roll: float, pitch: float, yaw: float) -> Quat:
+    """Quaternion (w, x, y, z) for 3-2-1 Euler angles (PX4's Quatf(Eulerf(r, p, y)))."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def dcm_nb_from_euler(roll: float, pitch: float, yaw: float) -> tuple[Vec3, Vec3, Vec3]:
+    """Rows of the matrix that maps NED vectors into body FRD (transpose of R(q))."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return (
+        (cp * cy, cp * sy, -sp),
+        (sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, sr * cp),
+        (cr * sp * cy + sr * sy, cr * sp * sy - sr * cy, cr * cp),
+    )
+
+
+def rotate_ned_to_body(v_ned: Vec3, roll: float, pitch: float, yaw: float) -> Vec3:
+    """Express a NED vector in body FRD axes."""
+    r0, r1, r2 = dcm_nb_from_euler(roll, pitch, yaw)
+    x, y, z = v_ned
+    return (
+        r0[0] * x + r0[1] * y + r0[2] * z,
+        r1[0] * x + r1[1] * y + r1[2] * z,
+        r2[0] * x + r2[1] * y + r2[2] * z,
+    )

@@ -1,0 +1,253 @@
+"""The world: JSBSim vehicle, ESCs, battery and environment, stepped at a fixed rate.
+
+The world owns an integer clock ``t_ns = steps * dt_ns`` (JSBSim's float time is never used for
+it). One ``step()``:
+
+1. every ESC applies the PWM inputs stamped at or before ``t_ns`` and runs its timers and lag;
+2. each motor gets the ESC throttle times battery voltage (as a fraction of the JSBSim motor's
+   rated voltage), so the motors weaken as the pack sags;
+3. JSBSim advances dt;
+4. the battery integrates the current drawn (motor electrical power through the ESC efficiency,
+   plus avionics) over dt;
+5. ``t_ns += dt_ns``.
+
+``truth()`` reads the state after the last step (built on demand, cached per step).
+Same constructor arguments and same inputs give the same outputs: there is no wall clock, and
+the only randomness is ``self.rng`` (a numpy Generator from ``seed`` unless one is passed in).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from .battery import Battery, BatteryParams
+from .esc import Esc, EscParams
+from .fdm import AIRFRAMES, FT, PSF_PA, Fdm
+from .magnetic import earth_field_ned_gauss
+from .truth import Truth
+
+__all__ = ["World", "PX4_HOME"]
+
+PX4_HOME = (47.397742, 8.545594, 488.0)  # lat deg, lon deg, ground altitude m AMSL
+
+N_PWM_CHANNELS = 8
+DEFAULT_PWM_PERIOD_NS = 2_500_000  # 400 Hz, PX4's default multicopter PWM rate
+
+# WGS-84
+_A = 6378137.0
+_E2 = 6.69437999014e-3
+_TWO_PI = 2.0 * math.pi
+
+
+class World:
+    """See the module docstring. Units: SI; frames: body FRD, NED."""
+
+    def __init__(
+        self,
+        seed: int = 0,
+        rate_hz: int = 1000,
+        airframe: str = "f450",
+        *,
+        lat_deg: float = PX4_HOME[0],
+        lon_deg: float = PX4_HOME[1],
+        alt_m: float = PX4_HOME[2],
+        heading_deg: float = 0.0,
+        agl_m: float = 0.0,
+        rng: np.random.Generator | None = None,
+        esc_params: EscParams | None = None,
+        battery_params: BatteryParams | None = None,
+        mag_field_ned_gauss: tuple[float, float, float] | None = None,
+    ) -> None:
+        """Create a world.
+
+        alt_m is the ground altitude AMSL at the start point; agl_m is the height of the landing
+        gear above it (0: resting on the ground, motors off). heading_deg: 0 is north.
+        """
+        if rate_hz <= 0 or 1_000_000_000 % rate_hz:
+            raise ValueError("rate_hz must divide 1e9 (integer-ns step), e.g. 250, 400, 1000")
+        try:
+            af = AIRFRAMES[airframe.lower()]
+        except KeyError:
+            raise ValueError(f"unknown airframe {airframe!r}; known: {sorted(AIRFRAMES)}")
+        self.airframe = af
+        self.seed = seed
+        self.rate_hz = rate_hz
+        self.dt_ns = 1_000_000_000 // rate_hz
+        self.dt_s = self.dt_ns * 1e-9
+        self.t_ns = 0
+        self.steps = 0
+        self.rng = rng if rng is not None else np.random.default_rng(seed)
+
+        self.fdm = Fdm(af, self.dt_s, lat_deg, lon_deg, alt_m, heading_deg, agl_m, seed)
+        self.escs = [Esc(self.dt_ns, esc_params) for _ in range(N_PWM_CHANNELS)]
+        self.battery = Battery(battery_params, self.dt_s)
+        self._bp = self.battery.params
+        self._esc_updates = tuple(e.update for e in self.escs[: af.n_motors])
+        self._throttle_set = self.fdm.throttle_setters
+        self._current_get = self.fdm.current_getters
+        self._vmax = af.motor_max_volts
+        self._jsb_throttle = [0.0] * af.n_motors
+        self.mag_field_ned_gauss = (
+            tuple(mag_field_ned_gauss)
+            if mag_field_ned_gauss is not None
+            else earth_field_ned_gauss(lat_deg, lon_deg, alt_m)
+        )
+
+        # Settle so that every derived JSBSim output (specific force in particular, which lags
+        # one step) is valid at t = 0: on the ground, let the gear take the load; in the air,
+        # just two steps (2 ms of fall). The world clock starts after this.
+        settle = max(2, round(0.2 / self.dt_s)) if agl_m <= 0.0 else 2
+        for _ in range(settle):
+            self.fdm.run()
+
+        g = self.fdm.truth_getters
+        self._lat0 = g[9]()
+        self._lon0 = g[10]()
+        self._alt0 = g[11]() * FT
+        lat0 = math.radians(self._lat0)
+        s2 = math.sin(lat0) ** 2
+        rn = _A / math.sqrt(1.0 - _E2 * s2)  # prime vertical radius
+        rm = rn * (1.0 - _E2) / (1.0 - _E2 * s2)  # meridian radius
+        self._m_per_deg_n = math.radians(1.0) * (rm + self._alt0)
+        self._m_per_deg_e = math.radians(1.0) * (rn + self._alt0) * math.cos(lat0)
+        self._truth_getters = self.fdm.truth_getters
+        self._truth_cache: Truth | None = None
+        self._truth_step = -1
+
+    # -- inputs ---------------------------------------------------------------------------
+    def set_pwm(self, ch: int, t_ns: int, high_ns: int, period_ns: int) -> None:
+        """From t_ns on, channel ch carries a pulse of high_ns every period_ns.
+
+        high_ns = 0 is a line held low (no pulses, e.g. a dead IO). Inputs stamped in the past
+        apply at the next step; inputs stamped ahead apply at the first step at or after them.
+        Channels beyond the airframe's motors are kept (for inspection) but drive nothing.
+        """
+        esc = self.escs[ch]
+        esc.set_signal(t_ns, high_ns, period_ns)
+        if ch >= self.airframe.n_motors:
+            esc.update(self.t_ns)  # not stepped by step(): drain what is due
+
+    def set_motor_pwm_us(
+        self, widths_us: Sequence[float], period_ns: int = DEFAULT_PWM_PERIOD_NS
+    ) -> None:
+        """Set channels 0..len-1 to these pulse widths (us), effective now."""
+        if not 1 <= len(widths_us) <= N_PWM_CHANNELS:
+            raise ValueError(f"1..{N_PWM_CHANNELS} pulse widths expected")
+        t = self.t_ns
+        for ch, w in enumerate(widths_us):
+            self.set_pwm(ch, t, round(w * 1000.0), period_ns)
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        """Advance n steps of dt."""
+        updates = self._esc_updates
+        setters = self._throttle_set
+        currents = self._current_get
+        jsb = self._jsb_throttle
+        battery = self.battery
+        bstep = battery.step
+        run = self.fdm.run
+        vmax = self._vmax
+        k_power = vmax / self._bp.esc_efficiency
+        i_avionics = self._bp.avionics_a
+        dt_ns = self.dt_ns
+        nm = len(updates)
+        for _ in range(n):
+            t = self.t_ns
+            scale = battery.voltage_v / vmax
+            for i in range(nm):
+                u = updates[i](t) * scale
+                if u > 1.0:
+                    u = 1.0
+                if u != jsb[i]:
+                    jsb[i] = u
+                    setters[i](u)
+            run()
+            # Battery current: motor electrical power (u * Vmax * I_motor) over bus voltage.
+            p = 0.0
+            for i in range(nm):
+                im = currents[i]()
+                if im > 0.0:
+                    p += jsb[i] * im
+            v = battery.voltage_v
+            bstep(i_avionics + (p * k_power / v if v > 0.5 else 0.0))
+            self.t_ns = t + dt_ns
+            self.steps += 1
+
+    def run_until(self, t_ns: int) -> None:
+        """Step while a whole step fits before t_ns (lockstep quantum end)."""
+        n = (t_ns - self.t_ns) // self.dt_ns
+        if n > 0:
+            self.step(n)
+
+    # -- outputs --------------------------------------------------------------------------
+    def truth(self) -> Truth:
+        """Ground truth after the last step (cached until the next step)."""
+        if self._truth_step == self.steps and self._truth_cache is not None:
+            return self._truth_cache
+        (ax, ay, az, p, q, r, roll, pitch, yaw, lat, lon, h_ft, agl_ft, vn, ve, vd,
+         p_psf, t_r, vt_fps, qbar_psf) = [g() for g in self._truth_getters]
+        if yaw > math.pi:  # JSBSim gives [0, 2 pi); PX4 uses (-pi, pi]
+            yaw -= _TWO_PI
+        alt = h_ft * FT
+        # Quaternion from the half angles, then the NED->body rotation from the quaternion.
+        cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+        cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+        cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+        qw = cr * cp * cy + sr * sp * sy
+        qx = sr * cp * cy - cr * sp * sy
+        qy = cr * sp * cy + sr * cp * sy
+        qz = cr * cp * sy - sr * sp * cy
+        if qw < 0.0:
+            qw, qx, qy, qz = -qw, -qx, -qy, -qz
+        mn, me, md = self.mag_field_ned_gauss
+        # body = R(q)^T ned
+        ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
+        xy, xz, yz = qx * qy, qx * qz, qy * qz
+        wx, wy, wz = qw * qx, qw * qy, qw * qz
+        mag = (
+            (ww + xx - yy - zz) * mn + 2.0 * (xy + wz) * me + 2.0 * (xz - wy) * md,
+            2.0 * (xy - wz) * mn + (ww - xx + yy - zz) * me + 2.0 * (yz + wx) * md,
+            2.0 * (xz + wy) * mn + 2.0 * (yz - wx) * me + (ww - xx - yy + zz) * md,
+        )
+        tr = Truth(
+            self.t_ns,
+            (ax * FT, ay * FT, az * FT),
+            (p, q, r),
+            (qw, qx, qy, qz),
+            (roll, pitch, yaw),
+            mag,
+            p_psf * PSF_PA,
+            t_r * (5.0 / 9.0) - 273.15,
+            lat,
+            lon,
+            alt,
+            agl_ft * FT,
+            (
+                (lat - self._lat0) * self._m_per_deg_n,
+                (lon - self._lon0) * self._m_per_deg_e,
+                self._alt0 - alt,
+            ),
+            (vn * FT, ve * FT, vd * FT),
+            vt_fps * FT,
+            qbar_psf * PSF_PA,
+            self.battery.voltage_v,
+            self.battery.current_a,
+        )
+        self._truth_cache = tr
+        self._truth_step = self.steps
+        return tr
+
+    def motor_rpm(self, i: int) -> float:
+        """Propeller speed of motor i (rpm), e.g. for ESC telemetry."""
+        return self.fdm.motor_rpm(i)
+
+    def motor_thrust_n(self, i: int) -> float:
+        return self.fdm.motor_thrust_n(i)
+
+    @property
+    def t_s(self) -> float:
+        return self.t_ns * 1e-9
