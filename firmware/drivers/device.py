@@ -1,0 +1,84 @@
+"""What every PX4-style device driver shares: the device id, perf counters, life cycle.
+
+A driver is a work item with a state machine (reset -> wait -> configure -> read) whose steps
+end by scheduling the next run, as in PX4's modern drivers. ``start()`` probes the device over
+its bus; a wrong or missing ID makes the driver refuse to start and say why in dmesg.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from firmware.platform import Platform
+from firmware.platform.perf import PC_COUNT, PC_ELAPSED, PC_INTERVAL
+from firmware.platform.workqueue import WorkItem
+
+__all__ = ["DeviceId", "BUS_TYPE_I2C", "BUS_TYPE_SPI", "BUS_TYPE_SERIAL", "SensorDriver"]
+
+BUS_TYPE_UNKNOWN, BUS_TYPE_I2C, BUS_TYPE_SPI, BUS_TYPE_UAVCAN, BUS_TYPE_SIMULATION, \
+    BUS_TYPE_SERIAL, BUS_TYPE_MAVLINK = range(7)
+
+
+@dataclass(frozen=True)
+class DeviceId:
+    """PX4's 32-bit device id: bus type (3 bits), bus (5), address (8), device type (8)."""
+
+    bus_type: int
+    bus: int
+    address: int
+    devtype: int
+
+    @property
+    def value(self) -> int:
+        return ((self.bus_type & 0x7) | ((self.bus & 0x1F) << 3) | ((self.address & 0xFF) << 8)
+                | ((self.devtype & 0xFF) << 16))
+
+    @classmethod
+    def decode(cls, value: int) -> DeviceId:
+        return cls(value & 0x7, (value >> 3) & 0x1F, (value >> 8) & 0xFF, (value >> 16) & 0xFF)
+
+
+class SensorDriver(WorkItem):
+    """Base of sensor drivers: perf counters, start/stop/status, messages in PX4's words."""
+
+    def __init__(self, platform: Platform, name: str, wq: str) -> None:
+        super().__init__(platform, name, wq)
+        perf = platform.perf
+        self.perf_cycle = perf.alloc(PC_ELAPSED, f"{name}: read")
+        self.perf_interval = perf.alloc(PC_INTERVAL, f"{name}: run interval")
+        self.perf_bad_register = perf.alloc(PC_COUNT, f"{name}: bad register")
+        self.perf_bad_transfer = perf.alloc(PC_COUNT, f"{name}: bad transfer")
+        self.perf_missed = perf.alloc(PC_COUNT, f"{name}: missed samples")
+        self.running = False
+        self.error_count = 0
+
+    # Drivers implement probe() (return None when OK, else the reason) and _start().
+    def probe(self) -> str | None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _start(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def start(self) -> bool:
+        """Probe and start; False (and a message in dmesg) if the device is not right."""
+        if self.running:
+            return True
+        why = self.probe()
+        if why is not None:
+            self.platform.error(self.name, f"not starting: {why}")
+            return False
+        self.running = True
+        self._start()
+        self.platform.info(self.name, "started")
+        return True
+
+    def stop(self) -> None:
+        self.schedule_clear()
+        self.running = False
+
+    def status(self) -> str:
+        lines = [f"{self.name}: {'running' if self.running else 'stopped'} on {self.wq.name}"]
+        for pc in (self.perf_cycle, self.perf_interval, self.perf_bad_register,
+                   self.perf_bad_transfer, self.perf_missed):
+            lines.append("  " + pc.summary())
+        return "\n".join(lines)

@@ -1,0 +1,50 @@
+"""Physical inputs of a board's sensors: what the world says the chip is experiencing.
+
+Sensor models never see the world directly; they read an :class:`Environment`, updated by the
+board from the truth records the orchestrator routes to it (or set by a test fixture that holds
+the board still or spins it). Values are SI at the model boundary: specific force in m/s^2 and
+rates in rad/s in the board's body frame (FRD), field in gauss, pressure in Pa, temperature in
+degC, position in degrees and metres, velocity NED in m/s.
+
+Between two updates the value is held (zero-order hold): the world steps at 1 kHz and the
+sensors' own filters and data rates are modelled by the chips.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["Environment"]
+
+Vec3 = tuple[float, float, float]
+G0 = 9.80665
+
+
+@dataclass
+class Environment:
+    t_ns: int = 0
+    accel_m_s2: Vec3 = (0.0, 0.0, -G0)     # specific force, body FRD (level and still: -g on z)
+    gyro_rad_s: Vec3 = (0.0, 0.0, 0.0)     # body rates, FRD
+    mag_gauss: Vec3 = (0.21, 0.01, 0.43)   # earth field in body axes
+    pressure_pa: float = 101_325.0
+    temperature_c: float = 25.0            # air temperature (the chips add self-heating)
+    board_temperature_c: float = 35.0      # the FMU's temperature, what the sensors' dies see
+    lat_deg: float = 47.397742
+    lon_deg: float = 8.545594
+    alt_m: float = 488.0
+    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)
+    gps_available: bool = True             # sky view: False indoors / under a jammer
+    extra: dict = field(default_factory=dict)
+
+    def update_from_truth(self, t_ns: int, truth: dict) -> None:
+        """Copy the fields of a world truth record (a mapping of field name to value)."""
+        self.t_ns = t_ns
+        self.accel_m_s2 = truth["accel_body_m_s2"]
+        self.gyro_rad_s = truth["gyro_rad_s"]
+        self.mag_gauss = truth["mag_body_gauss"]
+        self.pressure_pa = truth["pressure_pa"]
+        self.temperature_c = truth["temperature_c"]
+        self.lat_deg = truth["lat_deg"]
+        self.lon_deg = truth["lon_deg"]
+        self.alt_m = truth["alt_m"]
+        self.vel_ned_m_s = truth["vel_ned_m_s"]
