@@ -1,0 +1,38 @@
+"""Benchmarks: each figure is a function returning a number, registered in FIGURES.
+
+``hil bench`` runs them and prints a table (or, with ``--json``, one JSON object with one key per
+figure). Each function returns the median of several runs itself. Benchmarks may read the wall
+clock; tests never assert on speed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Figure:
+    key: str
+    target: str       # "module:function" inside the bench package
+    unit: str
+    about: str
+    issue: int        # the issue that introduced the figure
+
+
+FIGURES: list[Figure] = [
+    Figure("kernel_events_per_s", "bench_kernel:bench_kernel_events_per_s", "events/s",
+           "kernel events (self-rescheduling callbacks on 16 timers)", 2),
+    Figure("uorb_publish_callback_per_s", "bench_uorb:bench_uorb_publish_callback_per_s",
+           "publishes/s", "uORB publish -> callback subscription -> work item run -> update()", 2),
+    Figure("spi_14byte_transfers_per_s", "bench_spi:bench_spi_14byte_transfers_per_s",
+           "transfers/s", "14-byte SPI burst reads from a register-file target", 2),
+    Figure("uart_bytes_per_s", "bench_uart:bench_uart_bytes_per_s", "bytes/s",
+           "bytes through a UART pair at 1.5 Mbaud in 68-byte bursts (IDLE + read)", 2),
+    Figure("lockstep_overhead_us_per_quantum",
+           "bench_lockstep:bench_lockstep_overhead_us_per_quantum", "us/quantum",
+           "orchestrator + two empty board processes, cost of one 1 ms quantum", 3),
+    Figure("rtf_world_two_empty_boards", "bench_lockstep:bench_rtf_world_two_empty_boards",
+           "x real time", "JSBSim F450 world + two empty board processes, 1 ms quantum", 3),
+    Figure("rtf_jsbsim_only", "bench_world:bench_rtf_jsbsim_only", "x real time",
+           "the F450 world alone at 1 kHz (reference for the figure above)", 3),
+]

@@ -1,0 +1,184 @@
+"""A board: one chip with its kernel, its peripherals, and the ports its wires leave through.
+
+What leaves a board is only what real wires carry: UART bytes, pin levels, PWM pulse widths,
+CAN frames, and (into the FMU) the physical quantities its sensors measure. Each of those goes
+through a named *port*. During a quantum, outputs are collected as stamped records; inputs
+arrive as stamped records and are applied at their time (or at once, if that time has passed:
+a record from another process is late by up to one quantum).
+
+A record is ``(port, t_ns, payload)`` with a payload of plain data (ints, floats, bytes,
+tuples), so it can be marshalled to another process unchanged. The payload per port kind:
+
+========  =======================================================================
+``uart``  ``(baud, data_bits, parity, stop_bits, invert, data)``; ``data`` is bytes, or None
+          for a line break
+``pin``   level, 0 or 1 (or -1: released, the pin floats to its pull level)
+``pwm``   ``(high_ns, period_ns)``; ``(0, 0)`` when the output stops (a dead chip's pin)
+``can``   ``(arbitration_id, is_extended, is_remote, data)``
+``value`` any plain data, for analog inputs such as sensor truth
+========  =======================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from board.kernel import Kernel
+
+__all__ = ["Board", "PortInfo", "Record"]
+
+#: (port, t_ns, payload)
+Record = tuple[str, int, Any]
+
+PORT_KINDS = ("uart", "pin", "pwm", "can", "value")
+
+
+@dataclass(frozen=True)
+class PortInfo:
+    name: str
+    kind: str       # one of PORT_KINDS
+    direction: str  # "in", "out" or "inout"
+
+
+class Board:
+    """Base of the FMU and IO boards (and of test boards): kernel plus exposed ports.
+
+    Subclasses build their peripherals in ``__init__`` and expose the ones that leave the chip
+    with the ``expose_*`` methods. :meth:`advance` is the lockstep step used by the endpoint.
+    """
+
+    def __init__(self, name: str, seed: int = 0) -> None:
+        self.name = name
+        self.seed = seed
+        self.kernel = Kernel(name)
+        self.ports: dict[str, PortInfo] = {}
+        self._inputs: dict[str, Callable[[int, Any], None]] = {}
+        self._outbox: list[Record] = []
+
+    # -- exposing ports ------------------------------------------------------------------------
+
+    def _add_port(self, name: str, kind: str, direction: str) -> None:
+        if name in self.ports:
+            raise ValueError(f"board {self.name}: port {name!r} exposed twice")
+        if kind not in PORT_KINDS:
+            raise ValueError(f"board {self.name}: unknown port kind {kind!r}")
+        self.ports[name] = PortInfo(name, kind, direction)
+
+    def emit(self, port: str, t_ns: int, payload: Any) -> None:
+        """Record an output on ``port`` (called by the port adapters)."""
+        self._outbox.append((port, t_ns, payload))
+
+    def expose_uart(self, name: str, uart: Any) -> None:
+        """Expose a :class:`board.uart.Uart`: its TX bursts leave, bursts arriving feed its RX."""
+        self._add_port(name, "uart", "inout")
+        from board.uart import BREAK, UartConfig
+
+        uart.attach(_UartOut(self, name))
+        configs: dict[tuple, UartConfig] = {}
+
+        def deliver(t_ns: int, payload: Any) -> None:
+            key = payload[:5]
+            cfg = configs.get(key)
+            if cfg is None:
+                baud, bits, parity, stop, invert = key
+                cfg = configs[key] = UartConfig(baud, bits, parity, stop, bool(invert))
+            data = payload[5]
+            uart.receive(t_ns, cfg, BREAK if data is None else data)
+
+        self._inputs[name] = deliver
+
+    def expose_pin_out(self, name: str, pin: Any) -> None:
+        """Expose a pin this chip drives; its level changes leave as records."""
+        self._add_port(name, "pin", "out")
+        pin.on_change(lambda _pin, t_ns, level: self.emit(name, t_ns, level))
+
+    def expose_pin_in(self, name: str, pin: Any) -> None:
+        """Expose a pin driven from outside (a switch, another chip's output)."""
+        self._add_port(name, "pin", "in")
+        k = self.kernel
+
+        def deliver(t_ns: int, level: int) -> None:
+            t = t_ns if t_ns > k.now_ns else None
+            if level < 0:
+                pin.release(t)
+            else:
+                pin.set(level, t)
+
+        self._inputs[name] = deliver
+
+    def expose_pwm(self, name: str, channel: Any) -> None:
+        """Expose a timer channel's PWM output (pulse width and period as they change)."""
+        self._add_port(name, "pwm", "out")
+        channel.on_pwm(lambda t_ns, high_ns, period_ns: self.emit(name, t_ns, (high_ns, period_ns)))
+
+    def expose_input(self, name: str, handler: Callable[[int, Any], None], kind: str = "value"
+                     ) -> None:
+        """Expose a generic input; ``handler(t_ns, payload)`` runs when a record arrives."""
+        self._add_port(name, kind, "in")
+        self._inputs[name] = handler
+
+    def expose_output(self, name: str, kind: str = "value") -> Callable[[int, Any], None]:
+        """Expose a generic output; returns the function that emits on it."""
+        self._add_port(name, kind, "out")
+        return lambda t_ns, payload: self.emit(name, t_ns, payload)
+
+    # -- lockstep ------------------------------------------------------------------------------
+
+    def deliver(self, records: list[Record]) -> None:
+        """Apply input records: each at its time, or now if that time has passed.
+
+        A late record's handler still gets its original stamp: a UART burst that started in the
+        past delivers the bytes still in flight at their exact wire times.
+        """
+        k = self.kernel
+        for port, t_ns, payload in records:
+            handler = self._inputs.get(port)
+            if handler is None:
+                raise ValueError(f"board {self.name}: no input port {port!r} "
+                                 f"(inputs: {', '.join(sorted(self._inputs)) or 'none'})")
+            if t_ns <= k.now_ns:
+                handler(t_ns, payload)
+            else:
+                k.call_at(t_ns, handler, t_ns, payload)
+
+    def advance(self, until_ns: int, inputs: list[Record]) -> list[Record]:
+        """Apply ``inputs``, run the kernel to ``until_ns``, return the outputs stamped inside."""
+        if inputs:
+            self.deliver(inputs)
+        self.kernel.run(until_ns)
+        out = self._outbox
+        self._outbox = []
+        return out
+
+    def next_event_ns(self) -> int | None:
+        return self.kernel.peek_ns()
+
+    def call(self, method: str, *args: Any) -> Any:
+        """Run a named control method (``ctl_<method>``) of this board: shell commands, fault
+        injection, state queries for tests. Only plain data crosses."""
+        fn = getattr(self, f"ctl_{method}", None)
+        if fn is None:
+            raise AttributeError(f"board {self.name} has no control method {method!r}")
+        return fn(*args)
+
+    def ctl_time_ns(self) -> int:
+        return self.kernel.now_ns
+
+    def ctl_ports(self) -> list[tuple[str, str, str]]:
+        return [(p.name, p.kind, p.direction) for p in self.ports.values()]
+
+
+class _UartOut:
+    """The link a board's exposed UART transmits into: bursts become output records."""
+
+    __slots__ = ("board", "port")
+
+    def __init__(self, board: Board, port: str) -> None:
+        self.board = board
+        self.port = port
+
+    def transmit(self, t_start_ns: int, config: Any, data: Any) -> None:
+        raw = None if not isinstance(data, (bytes, bytearray, memoryview)) else bytes(data)
+        self.board.emit(self.port, t_start_ns, (config.baud, config.data_bits, config.parity,
+                                                config.stop_bits, int(config.invert), raw))

@@ -1,0 +1,161 @@
+"""A board in its own OS process, driven through the shared-memory channel of :mod:`hil.ipc`.
+
+:class:`ProcessHandle` is the orchestrator's side; :func:`board_process_main` is the child.
+Both sides speak the endpoint messages of :mod:`board.endpoint`, exactly as
+:class:`board.endpoint.LocalHandle` does in one process, so tests can run a system either way.
+
+Process hygiene, because a simulator that leaves processes behind is not one anybody keeps:
+
+* the child ignores SIGINT (Ctrl-C in a terminal reaches the whole process group; the
+  orchestrator decides how to stop);
+* the child asks Linux to kill it if the orchestrator dies (``PR_SET_PDEATHSIG``), and the
+  channel notices a vanished parent anyway;
+* :meth:`ProcessHandle.close` asks nicely, then terminates, then kills.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import marshal
+import multiprocessing
+import os
+import signal
+import sys
+import traceback
+from typing import Any
+
+from board.endpoint import OP_ADVANCE, OP_CALL, OP_STOP, R_ERROR, R_OK, R_RESULT, BoardDied
+from board.endpoint import Endpoint, build_board
+from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied
+
+__all__ = ["ProcessHandle", "board_process_main"]
+
+_dumps = marshal.dumps
+_loads = marshal.loads
+
+#: Ring size per direction; a quantum's traffic is far smaller, larger messages still stream.
+CHANNEL_CAPACITY = 1 << 18
+
+
+def _die_with_parent() -> None:
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        PR_SET_PDEATHSIG = 1
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def board_process_main(spec: ChannelSpec, name: str, factory: str,
+                       kwargs: dict[str, Any]) -> None:
+    """Body of a board process: build the board, say hello, then serve requests."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    ch = spec.attach()
+    try:
+        try:
+            endpoint = Endpoint(build_board(factory, kwargs))
+        except Exception:
+            ch.send(_dumps((R_ERROR, f"building board {name} with {factory} failed:\n"
+                                     f"{traceback.format_exc()}")))
+            return
+        ch.send(endpoint.hello())
+        while True:
+            try:
+                request = ch.recv()
+            except (ChannelClosed, PeerDied):
+                return
+            reply = endpoint.handle(request)
+            if reply is None:
+                return
+            ch.send(reply)
+            if not endpoint.alive:
+                return  # the firmware raised: this chip is dead, its process ends
+    finally:
+        ch.close()
+
+
+class ProcessHandle:
+    """The orchestrator's handle on a board process (same interface as ``LocalHandle``)."""
+
+    def __init__(self, name: str, factory: str, kwargs: dict[str, Any] | None = None,
+                 start_method: str = "spawn", reply_timeout_s: float | None = 120.0) -> None:
+        self.name = name
+        self.reply_timeout_s = reply_timeout_s
+        ctx = multiprocessing.get_context(start_method)
+        self._ch, spec = ChannelPair.create(capacity=CHANNEL_CAPACITY, ctx=ctx)
+        self.proc = ctx.Process(target=board_process_main, name=f"hil-{name}",
+                                args=(spec, name, factory, dict(kwargs or {})), daemon=True)
+        self.proc.start()
+        self._ch.watch(self.proc)
+        self.alive = True
+        hello = self._recv("start-up", timeout_s=300.0)
+        if hello[0] != R_RESULT:
+            self.alive = False
+            self.close()
+            raise BoardDied(name, hello[1])
+        self.ports: list[tuple[str, str, str]] = hello[1][1]
+
+    @property
+    def pid(self) -> int | None:
+        return self.proc.pid
+
+    def _recv(self, what: str, timeout_s: float | None = None) -> tuple:
+        try:
+            return _loads(self._ch.recv(timeout_s=timeout_s or self.reply_timeout_s))
+        except (PeerDied, ChannelClosed):
+            self.alive = False
+            self.proc.join(timeout=1.0)
+            code = self.proc.exitcode
+            how = (f"killed by signal {-code}" if code is not None and code < 0
+                   else f"exit code {code}")
+            raise BoardDied(self.name, f"process {self.proc.pid} ended during {what} ({how})"
+                            ) from None
+        except ChannelTimeout:
+            self.alive = False
+            raise BoardDied(self.name, f"no reply within {self.reply_timeout_s} s during "
+                                       f"{what} (hung?)") from None
+
+    def post_advance(self, until_ns: int, inputs: list) -> None:
+        try:
+            self._ch.send(_dumps((OP_ADVANCE, until_ns, inputs)))
+        except (PeerDied, ChannelClosed):
+            self.alive = False  # wait_advance reports it with the exit status
+
+    def wait_advance(self) -> tuple[list, int | None]:
+        reply = self._recv("advance")
+        if reply[0] == R_OK:
+            return reply[1], reply[2]
+        self.alive = False
+        raise BoardDied(self.name, reply[1])
+
+    def call(self, method: str, *args: Any) -> Any:
+        self._ch.send(_dumps((OP_CALL, method, args)))
+        reply = self._recv(f"call {method}")
+        if reply[0] == R_RESULT:
+            return reply[1]
+        raise RuntimeError(f"board {self.name}: {method} failed:\n{reply[1]}")
+
+    def kill(self) -> None:
+        """Kill the process abruptly (a test or an injected 'board dead' fault)."""
+        if self.proc.is_alive():
+            os.kill(self.proc.pid, signal.SIGKILL)
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        """Stop the board process: ask, then terminate, then kill. Idempotent."""
+        if self.alive and self.proc.is_alive():
+            try:
+                self._ch.send(_dumps((OP_STOP,)), timeout_s=timeout_s)
+            except Exception:
+                pass
+        self.alive = False
+        self.proc.join(timeout=timeout_s)
+        if self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(timeout=timeout_s)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join(timeout=timeout_s)
+        self._ch.close()

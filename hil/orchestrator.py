@@ -1,0 +1,272 @@
+"""The orchestrator: one master clock for the boards and the world, quantum by quantum.
+
+Each quantum ``(T, T + q]`` (an event at exactly T + q belongs to it):
+
+1. every live board is told "advance to T + q" with the records addressed to it (posted to all
+   boards first, so the board processes run in parallel);
+2. meanwhile the world (JSBSim) steps to T + q in this process;
+3. every board's outputs (stamped inside the quantum) are collected and routed along the wiring
+   to the inputs of the next quantum.
+
+So a record crosses a wire one quantum after the quantum it was produced in. Its stamp is kept:
+a byte sent at t arrives at t plus its wire time if that is still ahead of the receiver, and at
+the start of the next quantum otherwise. The added latency is therefore at most one quantum.
+
+Results never depend on pacing: pacing only sleeps between quanta (wall clock, allowed in hil/).
+"""
+
+from __future__ import annotations
+
+import marshal
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable
+
+from board.endpoint import BoardDied, LocalHandle
+from board.wiring import WORLD, Wire
+
+__all__ = ["BoardSpec", "Orchestrator", "BoardDied", "TraceWriter"]
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class BoardSpec:
+    """How to build a board: a factory ``"module:callable"`` and plain-data keyword arguments."""
+
+    factory: str
+    kwargs: dict[str, Any] = field(default_factory=dict)
+
+
+class TraceWriter:
+    """Records every inter-process message (stamped records per board per quantum).
+
+    The file is a sequence of marshalled tuples: a header
+    ``("fmu-hil-trace", 1, quantum_ns, {board: (factory, kwargs)})`` and then one
+    ``(board, until_ns, inputs, outputs)`` per board per quantum. ``hil.trace.replay_board``
+    rebuilds a board and feeds it the recorded inputs to reproduce its outputs.
+    """
+
+    def __init__(self, path: str, quantum_ns: int, boards: dict[str, BoardSpec]) -> None:
+        self._f = open(path, "wb")  # noqa: SIM115 - closed by close()
+        header = {name: (s.factory, s.kwargs) for name, s in boards.items()}
+        marshal.dump(("fmu-hil-trace", 1, quantum_ns, header), self._f)
+
+    def write(self, board: str, until_ns: int, inputs: list, outputs: list) -> None:
+        marshal.dump((board, until_ns, inputs, outputs), self._f)
+
+    def close(self) -> None:
+        self._f.close()
+
+
+class Orchestrator:
+    """Runs boards (as processes, or in this process) and an optional world in lockstep."""
+
+    def __init__(self, boards: dict[str, BoardSpec], wiring: Iterable[Wire] = (),
+                 world: Any = None, quantum_ns: int = 1_000_000, mode: str = "process",
+                 speed: float | None = None, trace_path: str | None = None,
+                 start_method: str = "spawn", keep_running_on_death: bool = True,
+                 log: Callable[[str], None] | None = None) -> None:
+        if quantum_ns <= 0 or type(quantum_ns) is not int:
+            raise ValueError(f"quantum must be a positive integer ns, got {quantum_ns!r}")
+        if mode not in ("process", "local"):
+            raise ValueError(f"mode must be 'process' or 'local', got {mode!r}")
+        if speed is not None and speed <= 0:
+            raise ValueError(f"speed factor must be positive, got {speed}")
+        self.specs = dict(boards)
+        self.wiring = list(wiring)
+        self.world = world
+        self.quantum_ns = quantum_ns
+        self.mode = mode
+        self.speed = speed
+        self.start_method = start_method
+        self.keep_running_on_death = keep_running_on_death
+        self.log = log or (lambda msg: None)
+        self.t_ns = 0
+        self.quanta = 0
+        self.handles: dict[str, Any] = {}
+        self.dead: dict[str, str] = {}
+        self._inbox: dict[str, list] = {name: [] for name in boards}
+        self._routes: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        self._trace = TraceWriter(trace_path, quantum_ns, self.specs) if trace_path else None
+        self._wall_start: float | None = None
+        self._wall_elapsed = 0.0
+        self._t_at_wall_start = 0
+        self.on_quantum: list[Callable[[Orchestrator], None]] = []
+        self._started = False
+        self._check_wiring()
+
+    # -- set-up ----------------------------------------------------------------------------
+
+    def _check_wiring(self) -> None:
+        for w in self.wiring:
+            for end in (w.src, w.dst):
+                if end[0] != WORLD and end[0] not in self.specs:
+                    raise ValueError(f"wire {w}: no board named {end[0]!r}")
+            if (w.src[0] == WORLD or w.dst[0] == WORLD) and self.world is None:
+                raise ValueError(f"wire {w} needs a world, and none was given")
+            self._routes.setdefault(w.src, []).append(w.dst)
+        if self.world is not None and hasattr(self.world, "wired"):
+            self.world.wired = {port for board, port in self._routes if board == WORLD}
+
+    def start(self) -> Orchestrator:
+        """Start every board (processes start in parallel) and check the wiring's port names."""
+        if self._started:
+            return self
+        self._started = True
+        try:
+            if self.mode == "process":
+                from hil.boardproc import ProcessHandle
+
+                for name, spec in self.specs.items():
+                    self.handles[name] = ProcessHandle(name, spec.factory, spec.kwargs,
+                                                       self.start_method)
+            else:
+                for name, spec in self.specs.items():
+                    self.handles[name] = LocalHandle(name, spec.factory, spec.kwargs)
+            for w in self.wiring:
+                for (board, port), want in ((w.src, ("out", "inout")), (w.dst, ("in", "inout"))):
+                    if board == WORLD:
+                        continue
+                    ports = {p[0]: p for p in self.handles[board].ports}
+                    if port not in ports:
+                        raise ValueError(f"wire {w}: board {board} has no port {port!r} "
+                                         f"(ports: {', '.join(sorted(ports)) or 'none'})")
+                    if ports[port][2] not in want:
+                        raise ValueError(f"wire {w}: port {board}.{port} is an "
+                                         f"{ports[port][2]!r} port")
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    # -- running -------------------------------------------------------------------------------
+
+    def step(self) -> None:
+        """Advance everything by one quantum."""
+        if not self._started:
+            self.start()
+        until = self.t_ns + self.quantum_ns
+        inbox = self._inbox
+        live = [(n, h) for n, h in self.handles.items() if n not in self.dead]
+        sent: dict[str, list] = {}
+        for name, handle in live:
+            inputs = inbox[name]
+            inbox[name] = []
+            sent[name] = inputs
+            handle.post_advance(until, inputs)
+        world = self.world
+        if world is not None:
+            world.run_until(until)
+            for port, t_ns, payload in world.outputs(until):
+                self._route(WORLD, port, t_ns, payload)
+        for name, handle in live:
+            try:
+                outputs, _next_ns = handle.wait_advance()
+            except BoardDied as died:
+                self._board_died(name, died.detail, until)
+                continue
+            if self._trace is not None:
+                self._trace.write(name, until, sent[name], outputs)
+            for port, t_ns, payload in outputs:
+                self._route(name, port, t_ns, payload)
+        self.t_ns = until
+        self.quanta += 1
+        for hook in self.on_quantum:
+            hook(self)
+        if self.speed is not None:
+            self._pace()
+
+    def _route(self, board: str, port: str, t_ns: int, payload: Any) -> None:
+        dsts = self._routes.get((board, port))
+        if not dsts:
+            return  # an output nothing is wired to (an unconnected pin) goes nowhere
+        for dst_board, dst_port in dsts:
+            if dst_board == WORLD:
+                self.world.input(dst_port, t_ns, payload)
+            elif dst_board not in self.dead:
+                self._inbox[dst_board].append((dst_port, t_ns, payload))
+
+    def _board_died(self, name: str, detail: str, t_ns: int) -> None:
+        self.dead[name] = detail
+        self.log(f"hil: board {name} died at t={t_ns / 1e9:.6f} s: {detail}")
+        handle = self.handles[name]
+        # A dead chip's outputs: UARTs fall silent (nothing more is sent), PWM pins stop
+        # pulsing, driven pins are released.
+        for port, kind, direction in handle.ports:
+            if direction == "in":
+                continue
+            if kind == "pwm":
+                self._route(name, port, t_ns, (0, 0))
+            elif kind == "pin":
+                self._route(name, port, t_ns, -1)
+        try:
+            handle.close(timeout_s=0.5)
+        except Exception:
+            pass
+        if not self.keep_running_on_death:
+            raise BoardDied(name, detail)
+
+    def run(self, duration_ns: int | None = None, until_ns: int | None = None) -> None:
+        """Run for ``duration_ns``, or until ``until_ns`` (rounded up to whole quanta)."""
+        if (duration_ns is None) == (until_ns is None):
+            raise ValueError("give exactly one of duration_ns and until_ns")
+        end = self.t_ns + duration_ns if duration_ns is not None else until_ns
+        assert end is not None
+        if not self._started:
+            self.start()
+        t0 = time.perf_counter()
+        if self._wall_start is None:
+            self._wall_start = t0
+            self._t_at_wall_start = self.t_ns
+        try:
+            while self.t_ns < end:
+                self.step()
+        finally:
+            self._wall_elapsed += time.perf_counter() - t0
+
+    def _pace(self) -> None:
+        assert self.speed is not None and self._wall_start is not None
+        target = self._wall_start + (self.t_ns - self._t_at_wall_start) / NS_PER_S / self.speed
+        delay = target - time.perf_counter()
+        if delay > 0.0005:
+            time.sleep(delay)
+
+    @property
+    def rtf(self) -> float:
+        """Virtual seconds per wall second spent in :meth:`run` so far."""
+        if self._wall_elapsed <= 0:
+            return 0.0
+        return (self.t_ns - self._t_at_wall_start) / NS_PER_S / self._wall_elapsed
+
+    def call(self, board: str, method: str, *args: Any) -> Any:
+        """A control call on a board (shell command, fault injection, state query)."""
+        if board in self.dead:
+            raise BoardDied(board, self.dead[board])
+        return self.handles[board].call(method, *args)
+
+    def kill(self, board: str) -> None:
+        """Kill a board's process abruptly (the 'FMU dead' fault); the next quantum notices."""
+        handle = self.handles[board]
+        if hasattr(handle, "kill"):
+            handle.kill()
+        else:
+            handle.alive = False
+            self._board_died(board, "killed", self.t_ns)
+
+    def close(self) -> None:
+        """Stop every board process and close the trace. Idempotent, safe after errors."""
+        for handle in self.handles.values():
+            try:
+                handle.close()
+            except Exception:
+                pass
+        if self._trace is not None:
+            self._trace.close()
+            self._trace = None
+
+    def __enter__(self) -> Orchestrator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,85 @@
+"""Reading and replaying lockstep traces (written by :class:`hil.orchestrator.TraceWriter`).
+
+A trace holds, per board and quantum, the records that went in and came out. Replaying a board
+rebuilds it from the factory in the header and feeds it the recorded inputs, quantum by quantum;
+since a board is deterministic, it must produce the recorded outputs again. That makes a trace
+both a debugging aid (run one board alone under a debugger with the exact inputs of a failing
+system run) and a regression oracle.
+"""
+
+from __future__ import annotations
+
+import marshal
+from dataclasses import dataclass
+from typing import Any, Iterator
+
+from board.endpoint import LocalHandle
+
+__all__ = ["read_trace", "replay_board", "Mismatch", "TraceError"]
+
+
+class TraceError(ValueError):
+    pass
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    board: str
+    until_ns: int
+    recorded: list
+    replayed: list
+
+
+def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, int, list, list]]]:
+    """Return (header, iterator of (board, until_ns, inputs, outputs))."""
+    f = open(path, "rb")  # noqa: SIM115 - closed by the generator
+    try:
+        header = marshal.load(f)
+    except (EOFError, ValueError, TypeError) as exc:
+        f.close()
+        raise TraceError(f"{path}: not an fmu-hil trace ({exc})") from None
+    if not (isinstance(header, tuple) and len(header) == 4 and header[0] == "fmu-hil-trace"):
+        f.close()
+        raise TraceError(f"{path}: not an fmu-hil trace (bad header)")
+    if header[1] != 1:
+        f.close()
+        raise TraceError(f"{path}: trace version {header[1]} is not supported")
+    info = {"quantum_ns": header[2], "boards": header[3]}
+
+    def records() -> Iterator[tuple[str, int, list, list]]:
+        with f:
+            while True:
+                try:
+                    rec = marshal.load(f)
+                except EOFError:
+                    return
+                except (ValueError, TypeError) as exc:
+                    raise TraceError(f"{path}: corrupt record ({exc})") from None
+                yield rec
+
+    return info, records()
+
+
+def replay_board(path: str, board: str, max_mismatches: int = 10) -> tuple[int, list[Mismatch]]:
+    """Replay one board of a trace; returns (quanta replayed, mismatches found)."""
+    info, records = read_trace(path)
+    if board not in info["boards"]:
+        raise TraceError(f"{path}: no board {board!r} (boards: {', '.join(info['boards'])})")
+    factory, kwargs = info["boards"][board]
+    handle = LocalHandle(board, factory, kwargs)
+    quanta = 0
+    mismatches: list[Mismatch] = []
+    try:
+        for name, until_ns, inputs, outputs in records:
+            if name != board:
+                continue
+            handle.post_advance(until_ns, inputs)
+            got, _ = handle.wait_advance()
+            quanta += 1
+            if got != outputs:
+                mismatches.append(Mismatch(board, until_ns, outputs, got))
+                if len(mismatches) >= max_mismatches:
+                    break
+    finally:
+        handle.close()
+    return quanta, mismatches

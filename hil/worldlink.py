@@ -1,0 +1,69 @@
+"""The world as the orchestrator sees it: named ports, like a board.
+
+Outputs: ``truth`` (every world step, the physical quantities at the FMU's sensors as a plain
+tuple in :data:`TRUTH_FIELDS` order) and ``battery`` (voltage, current). Inputs: ``esc1`` ..
+``esc8`` (PWM pulse width and period from the IO's timer outputs).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hil.world import World
+from hil.world.truth import Truth
+
+__all__ = ["WorldPorts", "TRUTH_FIELDS", "truth_record", "truth_from_record"]
+
+TRUTH_FIELDS: tuple[str, ...] = tuple(Truth.__dataclass_fields__)
+
+
+def truth_record(truth: Truth) -> tuple:
+    return tuple(getattr(truth, name) for name in TRUTH_FIELDS)
+
+
+def truth_from_record(record: tuple) -> Truth:
+    return Truth(*record)
+
+
+class WorldPorts:
+    """Wraps a :class:`World` with the port interface the orchestrator routes through."""
+
+    def __init__(self, world: World | None = None, truth_every_steps: int = 1, **kwargs: Any
+                 ) -> None:
+        self.world = world if world is not None else World(**kwargs)
+        self.truth_every_steps = truth_every_steps
+        self._out: list = []
+        #: Output ports something is wired to (set by the orchestrator); None means all.
+        #: Truth costs as much as a JSBSim step, so it is only computed when it goes somewhere.
+        self.wired: set[str] | None = None
+
+    @property
+    def t_ns(self) -> int:
+        return self.world.t_ns
+
+    def run_until(self, t_ns: int) -> None:
+        w = self.world
+        wired = self.wired
+        if wired is not None and "truth" not in wired:
+            w.run_until(t_ns)
+        else:
+            every = self.truth_every_steps
+            out = self._out
+            while w.t_ns + w.dt_ns <= t_ns:
+                w.step()
+                if w.steps % every == 0:
+                    out.append(("truth", w.t_ns, truth_record(w.truth())))
+        if wired is None or "battery" in wired:
+            self._out.append(("battery", w.t_ns, (w.battery.voltage_v, w.battery.current_a)))
+
+    def outputs(self, until_ns: int) -> list:
+        out = self._out
+        self._out = []
+        return out
+
+    def input(self, port: str, t_ns: int, payload: Any) -> None:
+        if port.startswith("esc"):
+            high_ns, period_ns = payload
+            self.world.set_pwm(int(port[3:]) - 1, t_ns, high_ns, period_ns)
+        else:
+            raise ValueError(f"world has no input port {port!r}")
