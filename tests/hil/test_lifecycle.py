@@ -1,0 +1,53 @@
+"""Process hygiene of `hil`: Ctrl-C (SIGINT) leaves no board process behind."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+
+def _children(pid):
+    kids = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            kids.append(int(entry))
+    return kids
+
+
+def _alive(pid):
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_sigint_to_hil_run_leaves_no_orphans():
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "run", "--duration", "1000"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert "hil run" in line
+        # Wait until the lockstep is running (the first progress line) and the boards exist.
+        line = proc.stdout.readline()
+        assert "t =" in line, line
+        boards = [p for p in _children(proc.pid) if _alive(p)]
+        assert len(boards) >= 2  # the FMU and IO board processes (plus maybe a tracker)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, out
+    deadline = time.monotonic() + 5
+    while any(_alive(p) for p in boards) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in boards if _alive(p)]
