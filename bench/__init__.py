@@ -30,9 +30,11 @@ FIGURES: list[Figure] = [
            "bytes through a UART pair at 1.5 Mbaud in 68-byte bursts (IDLE + read)", 2),
     Figure("lockstep_overhead_us_per_quantum",
            "bench_lockstep:bench_lockstep_overhead_us_per_quantum", "us/quantum",
-           "orchestrator + two empty board processes, cost of one 1 ms quantum", 3),
+           "orchestrator + two board processes with a 1 kHz tick (every quantum exchanged)", 3),
     Figure("rtf_world_two_empty_boards", "bench_lockstep:bench_rtf_world_two_empty_boards",
            "x real time", "JSBSim F450 world + two empty board processes, 1 ms quantum", 3),
+    Figure("rtf_world_two_ticking_boards", "bench_lockstep:bench_rtf_world_two_ticking_boards",
+           "x real time", "as above, boards with a 1 kHz tick (no exchange skipped)", 3),
     Figure("rtf_jsbsim_only", "bench_world:bench_rtf_jsbsim_only", "x real time",
            "the F450 world alone at 1 kHz (reference for the figure above)", 3),
 ]

@@ -142,11 +142,21 @@ class Board:
             else:
                 k.call_at(t_ns, handler, t_ns, payload)
 
-    def advance(self, until_ns: int, inputs: list[Record]) -> list[Record]:
-        """Apply ``inputs``, run the kernel to ``until_ns``, return the outputs stamped inside."""
+    def advance(self, until_ns: int, inputs: list[Record], start_ns: int | None = None
+                ) -> list[Record]:
+        """Run to ``start_ns`` (the quantum's start), apply ``inputs``, run to ``until_ns``;
+        return the outputs stamped inside.
+
+        ``start_ns`` matters when the orchestrator skipped this board for quanta in which it
+        had nothing due: the board first catches up to the quantum's start, so a late input is
+        applied at the same time as if it had never been skipped.
+        """
+        k = self.kernel
+        if start_ns is not None and start_ns > k.now_ns:
+            k.run(start_ns)
         if inputs:
             self.deliver(inputs)
-        self.kernel.run(until_ns)
+        k.run(until_ns)
         out = self._outbox
         self._outbox = []
         return out

@@ -8,7 +8,7 @@ The endpoint is the only door into a board from outside its process. Requests an
 * in this process (unit tests, debugging), through :class:`LocalHandle`, which still encodes
   and decodes every message so that nothing but plain data ever crosses the boundary.
 
-Requests: ``(OP_ADVANCE, until_ns, inputs)``, ``(OP_CALL, method, args)``, ``(OP_STOP,)``.
+Requests: ``(OP_ADVANCE, start_ns, until_ns, inputs)``, ``(OP_CALL, method, args)``, ``(OP_STOP,)``.
 Replies: ``(R_OK, outputs, next_event_ns)``, ``(R_RESULT, value)``, ``(R_ERROR, text)``.
 A board whose firmware raised is dead, like a chip in a hard fault: its endpoint answers
 ``R_ERROR`` with the traceback, and the orchestrator stops advancing it.
@@ -77,7 +77,7 @@ class Endpoint:
             return _dumps((R_ERROR, f"board {self.board.name} is dead"))
         try:
             if op == OP_ADVANCE:
-                out = self.board.advance(msg[1], msg[2])
+                out = self.board.advance(msg[2], msg[3], msg[1])
                 return _dumps((R_OK, out, self.board.next_event_ns()))
             if op == OP_CALL:
                 return _dumps((R_RESULT, self.board.call(msg[1], *msg[2])))
@@ -109,8 +109,8 @@ class LocalHandle:
         """The board object itself (in-process only: for debugging, never for routing)."""
         return self.endpoint.board
 
-    def post_advance(self, until_ns: int, inputs: list[Record]) -> None:
-        self._reply = self.endpoint.handle(_dumps((OP_ADVANCE, until_ns, inputs)))
+    def post_advance(self, start_ns: int, until_ns: int, inputs: list[Record]) -> None:
+        self._reply = self.endpoint.handle(_dumps((OP_ADVANCE, start_ns, until_ns, inputs)))
 
     def wait_advance(self) -> tuple[list[Record], int | None]:
         reply = _loads(self._reply)  # type: ignore[arg-type]
@@ -119,6 +119,9 @@ class LocalHandle:
             return reply[1], reply[2]
         self.alive = False
         raise BoardDied(self.name, reply[1])
+
+    def is_alive(self) -> bool:
+        return self.alive
 
     def call(self, method: str, *args: Any) -> Any:
         reply = _loads(self.endpoint.handle(_dumps((OP_CALL, method, args))))  # type: ignore

@@ -90,13 +90,13 @@ class Periodic:
         self.priority = priority
         self.next_ns = first_ns
         self.active = True
-        self._entry = kernel._push(first_ns, priority, self._fire, ())
+        self._entry = kernel.post(first_ns, priority, self._fire, ())
 
     def _fire(self) -> None:
         t = self.next_ns + self.period_ns
         self.next_ns = t
         # Reschedule before calling so that a callback may cancel its own timer.
-        self._entry = self.kernel._push(t, self.priority, self._fire, ())
+        self._entry = self.kernel.post(t, self.priority, self._fire, ())
         self.fn(*self.args)
 
     def cancel(self) -> None:
@@ -135,7 +135,8 @@ class Kernel:
 
     # -- scheduling ---------------------------------------------------------------------------
 
-    def _push(self, t_ns: int, priority: int, fn: Callable[..., Any], args: tuple) -> list:
+    def post(self, t_ns: int, priority: int, fn: Callable[..., Any], args: tuple) -> list:
+        """``call_at`` without argument checks, for the platform's hot paths (t_ns >= now)."""
         self._seq = seq = self._seq + 1
         entry = [t_ns, priority, seq, fn, args]
         _heappush(self._queue, entry)

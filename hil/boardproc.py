@@ -118,9 +118,9 @@ class ProcessHandle:
             raise BoardDied(self.name, f"no reply within {self.reply_timeout_s} s during "
                                        f"{what} (hung?)") from None
 
-    def post_advance(self, until_ns: int, inputs: list) -> None:
+    def post_advance(self, start_ns: int, until_ns: int, inputs: list) -> None:
         try:
-            self._ch.send(_dumps((OP_ADVANCE, until_ns, inputs)))
+            self._ch.send(_dumps((OP_ADVANCE, start_ns, until_ns, inputs)))
         except (PeerDied, ChannelClosed):
             self.alive = False  # wait_advance reports it with the exit status
 
@@ -137,6 +137,9 @@ class ProcessHandle:
         if reply[0] == R_RESULT:
             return reply[1]
         raise RuntimeError(f"board {self.name}: {method} failed:\n{reply[1]}")
+
+    def is_alive(self) -> bool:
+        return self.alive and self.proc.is_alive()
 
     def kill(self) -> None:
         """Kill the process abruptly (a test or an injected 'board dead' fault)."""

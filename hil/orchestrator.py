@@ -12,6 +12,10 @@ So a record crosses a wire one quantum after the quantum it was produced in. Its
 a byte sent at t arrives at t plus its wire time if that is still ahead of the receiver, and at
 the start of the next quantum otherwise. The added latency is therefore at most one quantum.
 
+A board with no inputs and no event due inside a quantum is not asked to advance at all (an
+exchange costs more than the quantum's work of an idle chip). When it is next asked, it first
+catches up to the quantum's start, so skipping never changes results.
+
 Results never depend on pacing: pacing only sleeps between quanta (wall clock, allowed in hil/).
 """
 
@@ -87,6 +91,10 @@ class Orchestrator:
         self.handles: dict[str, Any] = {}
         self.dead: dict[str, str] = {}
         self._inbox: dict[str, list] = {name: [] for name in boards}
+        #: next event time each board reported (None: nothing scheduled); 0 forces an exchange
+        self._next_ns: dict[str, int | None] = {name: 0 for name in boards}
+        self.skip_idle = True
+        self.exchanges = 0
         self._routes: dict[tuple[str, str], list[tuple[str, str]]] = {}
         self._trace = TraceWriter(trace_path, quantum_ns, self.specs) if trace_path else None
         self._wall_start: float | None = None
@@ -146,15 +154,26 @@ class Orchestrator:
         """Advance everything by one quantum."""
         if not self._started:
             self.start()
-        until = self.t_ns + self.quantum_ns
+        start = self.t_ns
+        until = start + self.quantum_ns
         inbox = self._inbox
-        live = [(n, h) for n, h in self.handles.items() if n not in self.dead]
+        next_ns = self._next_ns
+        skip = self.skip_idle
+        live = []
         sent: dict[str, list] = {}
-        for name, handle in live:
+        for name, handle in self.handles.items():
+            if name in self.dead:
+                continue
             inputs = inbox[name]
+            if skip and not inputs:
+                due = next_ns[name]
+                if (due is None or due > until) and (self.quanta & 15 or handle.is_alive()):
+                    continue  # idle; a skipped board's process is still checked every 16 quanta
             inbox[name] = []
             sent[name] = inputs
-            handle.post_advance(until, inputs)
+            handle.post_advance(start, until, inputs)
+            live.append((name, handle))
+        self.exchanges += len(live)
         world = self.world
         if world is not None:
             world.run_until(until)
@@ -162,7 +181,7 @@ class Orchestrator:
                 self._route(WORLD, port, t_ns, payload)
         for name, handle in live:
             try:
-                outputs, _next_ns = handle.wait_advance()
+                outputs, next_ns[name] = handle.wait_advance()
             except BoardDied as died:
                 self._board_died(name, died.detail, until)
                 continue
@@ -240,14 +259,22 @@ class Orchestrator:
         return (self.t_ns - self._t_at_wall_start) / NS_PER_S / self._wall_elapsed
 
     def call(self, board: str, method: str, *args: Any) -> Any:
-        """A control call on a board (shell command, fault injection, state query)."""
+        """A control call on a board (shell command, fault injection, state query), made at the
+        orchestrator's current time (a board skipped while idle catches up first)."""
         if board in self.dead:
             raise BoardDied(board, self.dead[board])
-        return self.handles[board].call(method, *args)
+        handle = self.handles[board]
+        if self._started and self.t_ns > 0:
+            handle.post_advance(self.t_ns, self.t_ns, [])
+            _, self._next_ns[board] = handle.wait_advance()
+        result = handle.call(method, *args)
+        self._next_ns[board] = 0  # a control call may have scheduled something
+        return result
 
     def kill(self, board: str) -> None:
         """Kill a board's process abruptly (the 'FMU dead' fault); the next quantum notices."""
         handle = self.handles[board]
+        self._next_ns[board] = 0  # exchange next quantum, so the death is seen at once
         if hasattr(handle, "kill"):
             handle.kill()
         else:

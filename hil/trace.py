@@ -66,6 +66,7 @@ def replay_board(path: str, board: str, max_mismatches: int = 10) -> tuple[int, 
     if board not in info["boards"]:
         raise TraceError(f"{path}: no board {board!r} (boards: {', '.join(info['boards'])})")
     factory, kwargs = info["boards"][board]
+    quantum = info["quantum_ns"]
     handle = LocalHandle(board, factory, kwargs)
     quanta = 0
     mismatches: list[Mismatch] = []
@@ -73,7 +74,7 @@ def replay_board(path: str, board: str, max_mismatches: int = 10) -> tuple[int, 
         for name, until_ns, inputs, outputs in records:
             if name != board:
                 continue
-            handle.post_advance(until_ns, inputs)
+            handle.post_advance(until_ns - quantum, until_ns, inputs)
             got, _ = handle.wait_advance()
             quanta += 1
             if got != outputs:

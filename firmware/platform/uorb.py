@@ -29,8 +29,8 @@ class TopicNode:
     """One instance of one topic: latest message, generation, optional queue, callbacks."""
 
     __slots__ = ("meta", "name", "instance", "generation", "queue_len", "buf", "last",
-                 "callbacks", "advertised", "last_publish_us", "publish_count", "lost",
-                 "_hrt")
+                 "callbacks", "advertised", "last_publish_ns", "publish_count", "lost",
+                 "_kernel")
 
     def __init__(self, meta: MessageDef, name: str, instance: int, hrt: Hrt) -> None:
         self.meta = meta
@@ -42,10 +42,10 @@ class TopicNode:
         self.last: Any = None
         self.callbacks: list[Callable[[], None]] = []
         self.advertised = False
-        self.last_publish_us = 0
+        self.last_publish_ns = 0
         self.publish_count = 0
         self.lost = 0
-        self._hrt = hrt
+        self._kernel = hrt.kernel
 
     def publish(self, msg: Any) -> None:
         snap = msg.copy()
@@ -54,7 +54,8 @@ class TopicNode:
         self.buf[gen % self.queue_len] = snap
         self.last = snap
         self.publish_count += 1
-        self.last_publish_us = self._hrt.absolute_time()
+        k = self._kernel
+        self.last_publish_ns = k.now_ns + k.busy_ns
         for cb in self.callbacks:
             cb()
 

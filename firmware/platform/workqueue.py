@@ -79,7 +79,7 @@ class WorkQueue:
             t = k.now_ns + k.busy_ns
             if self.busy_until_ns > t:
                 t = self.busy_until_ns
-            k.call_at(t, self._dispatch, priority=self._kprio)
+            k.post(t, self._kprio, self._dispatch, ())
 
     def remove(self, item: WorkItem) -> None:
         if item._queued:
@@ -105,7 +105,7 @@ class WorkQueue:
         self.busy_ns_total += cost
         self.busy_until_ns = k.now_ns + cost
         if self._q:
-            k.call_at(self.busy_until_ns, self._dispatch, priority=self._kprio)
+            k.post(self.busy_until_ns, self._kprio, self._dispatch, ())
         else:
             self._armed = False
 
