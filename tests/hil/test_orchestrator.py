@@ -174,3 +174,23 @@ def test_paced_mode_keeps_virtual_time_within_5_percent_of_wall_time():
         wall = time.perf_counter() - t0
     assert abs(wall - 10.0) / 10.0 < 0.05
     assert orch.t_ns == 10_000 * MS
+
+
+def test_exception_in_the_orchestrator_leaves_no_board_process():
+    specs = {"fmu": BoardSpec("board.stock:EmptyBoard", {"tick_us": 500}),
+             "io": BoardSpec("board.stock:EmptyBoard", {"tick_us": 500})}
+    orch = Orchestrator(specs, mode="process")
+
+    def explode(o):
+        if o.t_ns >= 3 * MS:
+            raise RuntimeError("scenario bug")
+
+    orch.on_quantum.append(explode)
+    with pytest.raises(RuntimeError, match="scenario bug"):
+        with orch:
+            pids = [h.pid for h in orch.handles.values()]
+            orch.run(duration_ns=10 * MS)
+    deadline = time.monotonic() + 5
+    while any(_pid_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_pid_alive(p) for p in pids)
