@@ -18,6 +18,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return main(seed=args.seed, duration_s=args.duration, as_json=args.json)
 
 
+def _cmd_log(args: argparse.Namespace) -> int:
+    from hil import log_tools
+
+    if args.log_command == "info":
+        return log_tools.info_main(args.file)
+    return log_tools.plot_main(args.file, args.topics, args.out)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
@@ -34,6 +42,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object, one key per figure")
     p.add_argument("--only", nargs="+", metavar="KEY", help="run only these figures")
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("log", help="inspect and plot ULog files")
+    logsub = p.add_subparsers(dest="log_command", metavar="info|plot", required=True)
+    q = logsub.add_parser("info", help="summary of a ULog file (topics, counts, messages)")
+    q.add_argument("file")
+    q = logsub.add_parser("plot", help="PNG plots of a ULog file")
+    q.add_argument("file")
+    q.add_argument("topics", nargs="*", help="extra topics to plot")
+    q.add_argument("--out", default=None, help="output folder (default: next to the log)")
+    p.set_defaults(func=_cmd_log)
     return parser
 
 
