@@ -1,0 +1,1 @@
+"""Memory technology device (MTD) drivers: the FRAM that holds parameters and waypoints."""
