@@ -1,0 +1,400 @@
+"""What the ST MEMS parts on SPI1 (L3GD20 gyro, LSM303D accel/mag) have in common.
+
+Both chips speak the same SPI protocol (reference sheet 2.3, 3.2): the first byte of a selection
+is a command, bit 7 = read, bit 6 = MS (auto-increment the address for each further byte),
+bits 5:0 the register address; data follows from the second byte; without MS every further byte
+hits the same register. Both latch 3-axis samples at an output data rate into little-endian
+(or big-endian, L3GD20 BLE) 16-bit output registers with the same data-ready, overrun, block
+data update (BDU) and 32-level FIFO behaviour. That shared machinery lives here so the two
+models only declare their register maps and physics.
+
+Cheap sampling. The FMU runs faster than real time, so nothing ticks at the output data rate.
+A :class:`SampleChannel` knows its sample grid (sample k is latched at
+``t0 + ceil(k * 1e12 / odr_mHz)`` ns: exact mean rate, no drift) and, when the bus or a pin
+event looks at it, computes only the samples that are still observable (the newest one for the
+output registers, at most 32 for the FIFO). Kernel events are scheduled only for data-ready pin
+edges that are enabled in the chip and wired to a pin, and only when the level can change.
+
+Choices where the reference sheet is unsure (section 10), documented once here:
+
+* FIFO_SRC reset/empty value 0x20 (EMPTY). FSS is 5 bits: a full FIFO (32 samples) reads FSS =
+  31 with OVRN set [?]. WTM/FTH is set when the level is >= the threshold and not empty.
+* In FIFO mode collection stops when 32 samples are stored (OVRN set) and does not resume until
+  the FIFO is reset through Bypass mode; in Stream mode the oldest sample is overwritten, OVRN
+  is set and cleared again when a sample is read.
+* With the FIFO enabled an auto-increment burst that passes OUT_Z_H (0x2D) wraps to OUT_X_L
+  (0x28) and reading 0x2D pops one sample (the behaviour PX4's LSM303D driver relies on) [?].
+* Stream-to-FIFO and Bypass-to-Stream switch on interrupt-generator events, which are not
+  modelled: they behave as Stream and Bypass respectively.
+* BOOT (reboot memory content) takes 5 ms, then every register returns to its reset value.
+* The command byte's own MISO slot reads 0xFF (MISO is not driven before the address is known).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from board.gpio import Pin
+from board.kernel import PRIO_HW, Kernel
+from board.spi import SpiTarget
+from peripherals.faults import FaultState
+from peripherals.regs import RegisterFile
+
+__all__ = [
+    "BOOT_NS",
+    "FIFO_BYPASS",
+    "FIFO_DEPTH",
+    "FIFO_FIFO",
+    "FIFO_STREAM",
+    "MS_BIT",
+    "READ_BIT",
+    "Matrix3",
+    "SampleChannel",
+    "StSpiTarget",
+    "check_rotation",
+    "period_ns",
+    "to_int16",
+]
+
+log = logging.getLogger(__name__)
+
+READ_BIT = 0x80
+MS_BIT = 0x40
+ADDR_MASK = 0x3F
+#: Reboot time after BOOT is set (reference 3.6: "clear BOOT after <= 5 ms").
+BOOT_NS = 5_000_000
+#: FIFO depth in samples (X, Y, Z each) of both parts.
+FIFO_DEPTH = 32
+FIFO_BYPASS, FIFO_FIFO, FIFO_STREAM = 0, 1, 2
+#: First and last output-register address of the 3-axis block (both parts, accel on LSM303D).
+OUT_FIRST, OUT_LAST = 0x28, 0x2D
+
+Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
+                tuple[float, float, float]]
+Vec3 = tuple[float, float, float]
+
+
+def check_rotation(rotation: Sequence[Sequence[float]] | None) -> Matrix3 | None:
+    """Validate an optional 3x3 board->sensor matrix; identity becomes None (the fast path)."""
+    if rotation is None:
+        return None
+    rows = [tuple(float(v) for v in row) for row in rotation]
+    if len(rows) != 3 or any(len(r) != 3 for r in rows):
+        raise ValueError(f"rotation must be a 3x3 board->sensor matrix, got {rotation!r}")
+    if rows == [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)]:
+        return None
+    return tuple(rows)  # type: ignore[return-value]
+
+
+def rotate(m: Matrix3 | None, v: Sequence[float]) -> Vec3:
+    """``m @ v`` (identity when ``m`` is None)."""
+    if m is None:
+        return (v[0], v[1], v[2])
+    x, y, z = v
+    return (m[0][0] * x + m[0][1] * y + m[0][2] * z,
+            m[1][0] * x + m[1][1] * y + m[1][2] * z,
+            m[2][0] * x + m[2][1] * y + m[2][2] * z)
+
+
+def to_int16(value: float) -> int:
+    """Quantise to the 16-bit two's complement output, saturating as the ADC does."""
+    r = round(value)
+    return 32767 if r > 32767 else (max(r, -32768))
+
+
+def period_ns(odr_mhz: int, k: int = 1) -> int:
+    """Time of sample ``k`` after the start of a grid at ``odr_mhz`` milli-hertz."""
+    return -(-k * 10**12 // odr_mhz)
+
+
+class SampleChannel:
+    """One 3-axis output of a chip: sample grid, output latch with BDU, status bits, FIFO.
+
+    ``sample_fn(t_ns)`` returns the raw counts (x, y, z) the chip converts for a sample latched
+    at ``t_ns``; it is called only for samples someone can still observe.
+    """
+
+    def __init__(self, sample_fn: Callable[[int], tuple[int, int, int]],
+                 fifo_depth: int = 0) -> None:
+        self.sample_fn = sample_fn
+        self.fifo_depth = fifo_depth
+        self.clear()
+
+    def clear(self) -> None:
+        """Power-on state: stopped, outputs zero, no status, FIFO empty and bypassed."""
+        self.odr_mhz = 0
+        self.t0_ns = 0
+        self.k = 0
+        #: Conversions left in single-conversion mode (None: continuous).
+        self.limit: int | None = None
+        self.axes = 0b111
+        self.bdu = False
+        self.latest = [0, 0, 0]
+        self.out = [0, 0, 0]
+        self.da = 0
+        self.ovr = 0
+        self._halves = [0, 0, 0]
+        self.fifo: deque[tuple[int, int, int]] = deque()
+        self.fifo_mode = FIFO_BYPASS
+        self.fifo_ovrn = False
+        self.fifo_stopped = False
+        self._head = (0, 0, 0)
+        #: Samples latched since power-on (tests and status).
+        self.samples = 0
+
+    # -- grid ---------------------------------------------------------------------------------
+
+    @property
+    def running(self) -> bool:
+        return self.odr_mhz > 0
+
+    def start(self, t_ns: int, odr_mhz: int, limit: int | None = None) -> None:
+        """(Re)start conversions at ``odr_mhz``: first sample one period after ``t_ns``."""
+        self.odr_mhz = odr_mhz
+        self.t0_ns = t_ns
+        self.k = 0
+        self.limit = limit
+
+    def stop(self) -> None:
+        self.odr_mhz = 0
+        self.limit = None
+
+    def sample_time(self, k: int) -> int:
+        return self.t0_ns + period_ns(self.odr_mhz, k)
+
+    def next_sample_ns(self) -> int | None:
+        return self.sample_time(self.k + 1) if self.odr_mhz else None
+
+    def advance(self, t_ns: int) -> int:
+        """Latch every sample due at or before ``t_ns``; returns how many were due."""
+        odr = self.odr_mhz
+        if not odr or t_ns <= self.t0_ns:
+            return 0
+        n = (t_ns - self.t0_ns) * odr // 10**12 - self.k
+        if n <= 0:
+            return 0
+        if self.limit is not None:
+            n = min(n, self.limit)
+            self.limit -= n
+        first, last = self.k + 1, self.k + n
+        self.k = last
+        mode = self.fifo_mode
+        if mode == FIFO_FIFO and not self.fifo_stopped:
+            pushes = range(first, first + min(n, self.fifo_depth - len(self.fifo)))
+        elif mode == FIFO_STREAM:
+            pushes = range(last - min(n, self.fifo_depth) + 1, last + 1)
+        else:
+            pushes = range(0)
+        values = {}
+        for k in sorted(set(pushes) | {last}):
+            values[k] = self.sample_fn(self.sample_time(k))
+        if pushes:
+            fifo = self.fifo
+            for k in pushes:
+                fifo.append(values[k])
+            while len(fifo) > self.fifo_depth:
+                fifo.popleft()
+            if len(fifo) >= self.fifo_depth:
+                self.fifo_ovrn = True
+                if mode == FIFO_FIFO:
+                    self.fifo_stopped = True
+        v = values[last]
+        self.latest = list(v)
+        en = self.axes
+        self.ovr |= (self.da | (0b111 if n > 1 else 0)) & en
+        self.da |= en
+        out, halves, bdu = self.out, self._halves, self.bdu
+        for j in range(3):
+            if en >> j & 1 and not (bdu and halves[j]):
+                out[j] = v[j]
+        self.samples += n
+        if self.limit == 0:
+            self.stop()
+        return n
+
+    # -- registers ------------------------------------------------------------------------------
+
+    def set_bdu(self, bdu: bool) -> None:
+        self.bdu = bdu
+        if not bdu:
+            self._halves = [0, 0, 0]
+
+    def set_fifo_mode(self, mode: int) -> None:
+        """Select Bypass/FIFO/Stream; Bypass empties the FIFO and clears its flags."""
+        if mode == FIFO_BYPASS:
+            self.fifo.clear()
+            self.fifo_ovrn = False
+            self.fifo_stopped = False
+        self.fifo_mode = mode
+
+    def read_byte(self, i: int, big_endian: bool = False) -> int:
+        """Read output byte ``i`` (0 = lowest address of the X/Y/Z block)."""
+        j = i >> 1
+        if self.fifo_mode != FIFO_BYPASS:
+            v = self.fifo[0][j] if self.fifo else self._head[j]
+        else:
+            v = self.out[j]
+            if self.bdu:
+                h = self._halves[j] | (1 << (i & 1))
+                self._halves[j] = 0 if h == 3 else h
+        high = (i & 1) ^ int(big_endian)
+        if high:
+            mask = ~(1 << j)
+            self.da &= mask
+            self.ovr &= mask
+        if i == 5 and self.fifo_mode != FIFO_BYPASS and self.fifo:
+            self._head = self.fifo.popleft()
+            if self.fifo_mode == FIFO_STREAM:
+                self.fifo_ovrn = False
+        return (v >> 8) & 0xFF if high else v & 0xFF
+
+    def status_byte(self) -> int:
+        """STATUS layout of both parts: xyzOR in 7..4, xyzDA in 3..0 (bit 0 = X)."""
+        da, ovr = self.da, self.ovr
+        return (0x80 if ovr else 0) | (ovr << 4) | (0x08 if da else 0) | da
+
+    def fifo_src(self, threshold: int) -> int:
+        """FIFO_SRC: threshold flag, OVRN, EMPTY, FSS (see the module notes)."""
+        n = len(self.fifo)
+        return ((0x80 if n and n >= threshold else 0) | (0x40 if self.fifo_ovrn else 0)
+                | (0x20 if n == 0 else 0) | min(n, 31))
+
+
+class StSpiTarget(SpiTarget):
+    """ST SPI framing, faults on the wire, BOOT, and the single pending pin event.
+
+    Subclasses provide ``regs`` (a :class:`RegisterFile` of 64 addresses), ``_service(t)``
+    (bring the sample channels up to ``t``), ``_refresh_pins(t)`` (drive the interrupt pins and
+    arm the next pin event), ``_fifo_wrap()`` (True while the FIFO burst wrap is active) and
+    ``_power_on()`` (reset the behaviour behind the registers).
+    """
+
+    max_clock_hz = 10_000_000
+    WHO_AM_I = 0x0F
+
+    def __init__(self, kernel: Kernel, name: str, rng: np.random.Generator,
+                 data_addrs: frozenset[int]) -> None:
+        self.kernel = kernel
+        self.name = name
+        self.rng = rng
+        self.faults = FaultState()
+        self._data_addrs = data_addrs
+        self._cmd: int | None = None
+        self._addr = 0
+        #: Time of the access being served (hooks use it to restart sample grids).
+        self._t = 0
+        self._pin_event: list | None = None
+        self._boot_event: list | None = None
+        self._warned: set[str] = set()
+        self.regs: RegisterFile
+
+    # -- SPI hooks ------------------------------------------------------------------------------
+
+    def _select(self, t_ns: int, mode: int, clock_hz: int) -> None:
+        self._cmd = None
+
+    def _exchange(self, t_ns: int, tx: bytes) -> bytes:
+        faults = self.faults
+        if faults.absent:
+            return b"\xff" * len(tx)
+        self._t = t_ns
+        self._service(t_ns)
+        out = bytearray(len(tx))
+        start = 0
+        if self._cmd is None and tx:
+            self._cmd = tx[0]
+            self._addr = tx[0] & ADDR_MASK
+            out[0] = 0xFF
+            start = 1
+        cmd = self._cmd
+        if cmd is None:
+            return bytes(out)
+        read, inc = cmd & READ_BIT, cmd & MS_BIT
+        addr = self._addr
+        for i in range(start, len(tx)):
+            if read:
+                out[i] = self._read(addr)
+            else:
+                self.regs.write(addr, tx[i])
+            if inc:
+                addr = OUT_FIRST if (addr == OUT_LAST and self._fifo_wrap()) else \
+                    (addr + 1) & ADDR_MASK
+        self._addr = addr
+        self._refresh_pins(t_ns)
+        return bytes(out)
+
+    def _read(self, addr: int) -> int:
+        faults = self.faults
+        if addr == self.WHO_AM_I and faults.wrong_id is not None:
+            return faults.wrong_id & 0xFF
+        value = self.regs.read(addr)
+        if faults.random_data and addr in self._data_addrs:
+            return int(self.rng.integers(0, 256))
+        return value
+
+    # -- timing helpers -------------------------------------------------------------------------
+
+    def _arm(self, t_ns: int | None) -> None:
+        """Keep exactly one pending pin event, at ``t_ns`` (None: none needed)."""
+        ev = self._pin_event
+        if ev is not None:
+            if t_ns == ev[0] and ev[3] is not None:
+                return
+            ev[3] = None
+            self._pin_event = None
+        if t_ns is not None:
+            self._pin_event = self.kernel.call_at(t_ns, self._on_pin_event, priority=PRIO_HW)
+
+    def _on_pin_event(self) -> None:
+        self._pin_event = None
+        t = self.kernel.now_ns
+        self._t = t
+        self._service(t)
+        self._refresh_pins(t)
+
+    def _warn_once(self, key: str, text: str) -> None:
+        """Log a setting the datasheet calls reserved, once per kind (the chip just obeys)."""
+        if key not in self._warned:
+            self._warned.add(key)
+            log.warning("%s: %s", self.name, text)
+
+    def _set_pin(self, pin: Pin, level: int, t_ns: int) -> None:
+        if pin.level != level or not pin.driven:
+            pin.set(level, t_ns=max(t_ns, self.kernel.now_ns))
+
+    def _start_boot(self) -> None:
+        if self._boot_event is None:
+            self._boot_event = self.kernel.call_at(self._t + BOOT_NS, self._boot_done,
+                                                   priority=PRIO_HW)
+
+    def _boot_done(self) -> None:
+        self._boot_event = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Power-on reset (sensor rail cycled, or the end of a BOOT sequence)."""
+        t = self.kernel.now_ns
+        self._t = t
+        Kernel.cancel(self._boot_event)
+        self._boot_event = None
+        self.regs.reset()
+        self._power_on()
+        self._refresh_pins(t)
+
+    # -- subclass hooks -------------------------------------------------------------------------
+
+    def _service(self, t_ns: int) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _refresh_pins(self, t_ns: int) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _fifo_wrap(self) -> bool:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _power_on(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
