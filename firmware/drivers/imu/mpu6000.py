@@ -1,0 +1,494 @@
+"""MPU-6000 driver in the shape of PX4's modern InvenSense drivers.
+
+State machine (each step ends by scheduling the next run on ``wq:SPI1``)::
+
+    RESET -> WAIT_FOR_RESET -> CONFIGURE -> FIFO_READ
+      ^             |              |            |
+      +-- 1 s, no --+-- 5 fails ---+- bad reg. -+-- no answer (3 x 0xFF)
+
+* The chip runs at its reset sample rate, 8 kHz (DLPF_CFG 0, SMPLRT_DIV 0), +-2000 deg/s and
+  +-16 g, accel and gyro into the FIFO (12-byte records), INT active low on data ready.
+* Publication rate: ``sensor_gyro`` and ``sensor_accel`` are published once per
+  ``8000 / publish_rate_hz`` samples (default 1 kHz: eight 8 kHz FIFO records averaged,
+  ``samples = 8``). With a DRDY pin the falling edge of every 8th interrupt schedules the FIFO
+  read; without one the driver polls every 1 ms. The configured rate is that publication rate.
+* Register access at 1 MHz; FIFO count, FIFO data and temperature at 20 MHz requested.
+* Health, as a PX4 driver would see it: one configuration register (or WHO_AM_I) is re-read
+  every 10 ms and any mismatch triggers a full reset (perf ``bad register``); FIFO count or data
+  of all 0xFF is a bad transfer, three in a row reset the chip; a FIFO at 1024 bytes is an
+  overflow (FIFO reset); accel must repeat over 8 records at 8 kHz (else the data is corrupt:
+  bad transfer, FIFO reset); 100 cycles of identical records are reported as stuck data; no
+  data-ready for 4 publication intervals falls back to polling and counts missed samples;
+  clipping is counted per axis in ``clip_counter``. Every error also increments
+  ``error_count`` in the published messages. A bias step is data, not a fault the driver can
+  see: it passes through to the estimator, whose checks own it.
+
+Counts to SI use PX4's scales: accel 9.80665/2048 m/s^2 per LSB (doubled LSB/g on rev C
+silicon, whose sensitivity is twice rev D's), gyro radians(2000/32768) rad/s per LSB.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from typing import Any
+
+from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
+from firmware.drivers.imu import rotation_matrix
+from firmware.platform import Platform
+from firmware.platform.perf import PC_COUNT
+
+__all__ = ["DRV_IMU_DEVTYPE_MPU6000", "PRODUCT_IDS", "Mpu6000Driver"]
+
+DRV_IMU_DEVTYPE_MPU6000 = 0x21
+WHO_AM_I_VALUE = 0x68
+#: PRODUCT_ID codes the legacy PX4 driver accepts (ES and production, rev C4..D10).
+PRODUCT_IDS = frozenset({0x14, 0x15, 0x16, 0x17, 0x18,
+                         0x54, 0x55, 0x56, 0x57, 0x58, 0x59, 0x5A})
+REV_C_IDS = frozenset({0x14, 0x15, 0x54, 0x55})
+
+# Registers.
+PRODUCT_ID, SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG = 0x0C, 0x19, 0x1A, 0x1B, 0x1C
+FIFO_EN, INT_PIN_CFG, INT_ENABLE, TEMP_OUT_H = 0x23, 0x37, 0x38, 0x41
+SIGNAL_PATH_RESET, USER_CTRL, PWR_MGMT_1, FIFO_COUNTH, FIFO_R_W, WHO_AM_I = (
+    0x68, 0x6A, 0x6B, 0x72, 0x74, 0x75)
+DIR_READ = 0x80
+
+#: (register, bits to set, bits to clear): what configure() writes and the check re-reads.
+REGISTER_CONFIG: tuple[tuple[int, int, int], ...] = (
+    (SMPLRT_DIV, 0x00, 0xFF),    # 8 kHz / (1 + 0)
+    (CONFIG, 0x00, 0x07),        # DLPF_CFG 0: 256 Hz gyro, 8 kHz
+    (GYRO_CONFIG, 0x18, 0xE0),   # FS_SEL 3, +-2000 deg/s, self-test off
+    (ACCEL_CONFIG, 0x18, 0xE0),  # AFS_SEL 3, +-16 g, self-test off
+    (FIFO_EN, 0x78, 0x80),       # XG, YG, ZG, ACCEL into the FIFO; not TEMP
+    (INT_PIN_CFG, 0x80, 0x00),   # INT_LEVEL: active low
+    (INT_ENABLE, 0x01, 0x00),    # DATA_RDY_EN
+    (USER_CTRL, 0x50, 0x00),     # FIFO_EN | I2C_IF_DIS
+    (PWR_MGMT_1, 0x01, 0x40),    # CLKSEL PLL X gyro, SLEEP off
+)
+
+SAMPLE_RATE_HZ = 8000
+FIFO_SIZE = 1024
+RECORD_BYTES = 12
+MAX_RECORDS = FIFO_SIZE // RECORD_BYTES
+ACCEL_SCALE = 9.80665 / 2048.0
+GYRO_SCALE = math.radians(2000.0 / 32768.0)
+REG_CLOCK_HZ = 1_000_000
+DATA_CLOCK_HZ = 20_000_000
+REGISTER_CHECK_US = 10_000
+TEMPERATURE_US = 1_000_000
+STUCK_CYCLES = 100
+NO_ANSWER_RESET = 3
+
+RESET, WAIT_FOR_RESET, CONFIGURE, FIFO_READ = "reset", "wait_for_reset", "configure", "fifo_read"
+
+
+class Mpu6000Driver(SensorDriver):
+    """One MPU-6000 on an SPI chip select, publishing ``sensor_accel`` and ``sensor_gyro``.
+
+    ``drdy_pin`` is the board pin wired to INT (PD15 on FMUv2; None: poll). ``address`` goes
+    into the device id (the chip-select index). ``rotation`` is the PX4 mounting rotation
+    applied to the data before publication.
+    """
+
+    def __init__(self, platform: Platform, spi_handle: Any, drdy_pin: Any | None = None,
+                 bus: int = 1, rotation: int | str = 0, name: str = "mpu6000",
+                 address: int = 0, publish_rate_hz: int = 1000) -> None:
+        super().__init__(platform, name, "wq:SPI1")
+        if publish_rate_hz <= 0 or SAMPLE_RATE_HZ % publish_rate_hz:
+            raise ValueError(f"{name}: publish_rate_hz must divide {SAMPLE_RATE_HZ}, "
+                             f"got {publish_rate_hz}")
+        self.spi = spi_handle
+        self.drdy_pin = drdy_pin
+        self.rotation = rotation_matrix(rotation)
+        self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_IMU_DEVTYPE_MPU6000).value
+        self.publish_rate_hz = publish_rate_hz
+        self.samples_per_publish = SAMPLE_RATE_HZ // publish_rate_hz
+        self.publish_interval_us = 1_000_000 // publish_rate_hz
+        perf = platform.perf
+        self.perf_fifo_empty = perf.alloc(PC_COUNT, f"{name}: FIFO empty")
+        self.perf_fifo_overflow = perf.alloc(PC_COUNT, f"{name}: FIFO overflow")
+        self.perf_fifo_reset = perf.alloc(PC_COUNT, f"{name}: FIFO reset")
+        self.perf_drdy_timeout = perf.alloc(PC_COUNT, f"{name}: DRDY timeout")
+        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
+        self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
+        self.state = RESET
+        self.product_id: int | None = None
+        self.accel_scale = ACCEL_SCALE
+        self.temperature = math.nan
+        self.publications = 0
+        self._clock = 0
+        self._attached = False
+        self._reset_start_us = 0
+        self._reset_failures = 0
+        self._configure_failures = 0
+        self._drdy_count = 0
+        self._drdy_seen = False
+        self._last_drdy_ns = 0
+        self._polling_fallback = False
+        self._no_answer = 0
+        self._stuck_cycles = 0
+        self._corrupt = 0
+        self._last_record: bytes = b""
+        self._clipping = False
+        self._next_check_us = 0
+        self._next_temp_us = 0
+        self._check_index = 0
+        self._fifo_tx: dict[int, bytes] = {}
+        orb = platform.orb
+        self._pub_accel = orb.advertise_multi("sensor_accel")
+        self._pub_gyro = orb.advertise_multi("sensor_gyro")
+        self._accel = orb.new("sensor_accel", device_id=self.device_id)
+        self._gyro = orb.new("sensor_gyro", device_id=self.device_id)
+
+    # -- register access --------------------------------------------------------------------------
+
+    def _set_clock(self, hz: int) -> None:
+        if self._clock != hz:
+            self.spi.max_speed_hz = hz
+            self._clock = hz
+
+    def read_reg(self, reg: int) -> int:
+        self._set_clock(REG_CLOCK_HZ)
+        return self.spi.transfer(bytes((reg | DIR_READ, 0)))[1]
+
+    def write_reg(self, reg: int, value: int) -> None:
+        self._set_clock(REG_CLOCK_HZ)
+        self.spi.transfer(bytes((reg & 0x7F, value & 0xFF)))
+
+    def modify_reg(self, reg: int, set_bits: int, clear_bits: int) -> None:
+        orig = self.read_reg(reg)
+        value = (orig | set_bits) & ~clear_bits & 0xFF
+        if value != orig:
+            self.write_reg(reg, value)
+
+    # -- life cycle -------------------------------------------------------------------------------
+
+    def probe(self) -> str | None:
+        who = self.read_reg(WHO_AM_I)
+        if who != WHO_AM_I_VALUE:
+            return f"WHO_AM_I read 0x{who:02X}, expected 0x{WHO_AM_I_VALUE:02X}"
+        pid = self.read_reg(PRODUCT_ID)
+        if pid not in PRODUCT_IDS:
+            return (f"unexpected PRODUCT_ID 0x{pid:02X}, expected one of "
+                    f"{', '.join(f'0x{p:02X}' for p in sorted(PRODUCT_IDS))}")
+        self.product_id = pid
+        # Rev C silicon has twice the sensitivity: AFS_SEL 3 gives 4096 LSB/g (+-8 g).
+        self.accel_scale = ACCEL_SCALE / 2 if pid in REV_C_IDS else ACCEL_SCALE
+        return None
+
+    def _start(self) -> None:
+        if self.drdy_pin is not None and not self._attached:
+            self.drdy_pin.attach_interrupt(self._drdy_isr, rising=False, falling=True)
+            self._attached = True
+        self.state = RESET
+        self.schedule_now()
+
+    def stop(self) -> None:
+        if self._attached:
+            self.drdy_pin.detach_interrupt()
+            self._attached = False
+        self.state = RESET
+        super().stop()
+
+    def status(self) -> str:
+        pid = "?" if self.product_id is None else f"0x{self.product_id:02X}"
+        extra = [(f"  state {self.state}, product id {pid}, {self.temperature:.2f} degC, "
+                  f"{self.publications} publications, error count {self.error_count}")]
+        extra += ["  " + pc.summary() for pc in (
+            self.perf_fifo_empty, self.perf_fifo_overflow, self.perf_fifo_reset,
+            self.perf_drdy_timeout, self.perf_stuck, self.perf_reset)]
+        return "\n".join([super().status()] + extra)
+
+    def _error(self, counter: Any | None = None) -> None:
+        self.error_count += 1
+        if counter is not None:
+            counter.count()
+
+    def _drdy_isr(self, pin: Any, t_ns: int) -> None:
+        """Falling edge of INT: count samples, schedule the FIFO read every N of them."""
+        if self.state != FIFO_READ:
+            return
+        self._last_drdy_ns = t_ns
+        self._drdy_count += 1
+        if self._drdy_count >= self.samples_per_publish:
+            self._drdy_count = 0
+            self._drdy_seen = True
+            self.schedule_now()
+
+    # -- the state machine -------------------------------------------------------------------------
+
+    def run(self) -> None:
+        state = self.state
+        if state == FIFO_READ:
+            self._cycle()
+        elif state == RESET:
+            self.perf_reset.count()
+            self.write_reg(PWR_MGMT_1, 0x80)  # DEVICE_RESET
+            if self._reset_failures == 0:
+                self._reset_start_us = self.platform.time_us()
+            self.state = WAIT_FOR_RESET
+            self.schedule_delayed(100_000)
+        elif state == WAIT_FOR_RESET:
+            self._wait_for_reset()
+        elif state == CONFIGURE:
+            self._configure()
+
+    def _wait_for_reset(self) -> None:
+        who = self.read_reg(WHO_AM_I)
+        pwr = self.read_reg(PWR_MGMT_1)
+        if who == WHO_AM_I_VALUE and pwr == 0x40:
+            if self._reset_failures:
+                self.platform.info(self.name, "reset succeeded")
+            self._reset_failures = 0
+            self.write_reg(PWR_MGMT_1, 0x01)         # wake, PLL with X gyro
+            self.write_reg(SIGNAL_PATH_RESET, 0x07)  # gyro, accel, temp paths
+            self.write_reg(USER_CTRL, 0x11)          # SIG_COND_RESET | I2C_IF_DIS
+            self.state = CONFIGURE
+            self._configure_failures = 0
+            self.schedule_delayed(100_000)
+            return
+        if self.platform.time_us() - self._reset_start_us < 1_000_000:
+            self.schedule_delayed(10_000)
+            return
+        self._reset_failures += 1
+        self._error(self.perf_bad_register)
+        if self._reset_failures == 1 or self._reset_failures % 10 == 0:
+            self.platform.error(self.name, f"reset failed ({self._reset_failures}x): WHO_AM_I "
+                                           f"0x{who:02X} PWR_MGMT_1 0x{pwr:02X}, expected "
+                                           f"0x68/0x40; retrying")
+        self._reset_start_us = self.platform.time_us()
+        self.state = RESET
+        self.schedule_delayed(100_000)
+
+    def _configure(self) -> None:
+        for reg, set_bits, clear_bits in REGISTER_CONFIG:
+            self.modify_reg(reg, set_bits, clear_bits)
+        bad = self._check_all()
+        if bad is not None:
+            self._configure_failures += 1
+            if self._configure_failures < 5:
+                self.schedule_delayed(10_000)
+                return
+            self._error(self.perf_bad_register)
+            self.platform.error(self.name, f"configure failed: {bad}; resetting")
+            self.state = RESET
+            self.schedule_delayed(100_000)
+            return
+        self.state = FIFO_READ
+        self._fifo_reset()
+        now = self.platform.time_us()
+        self._next_check_us = now + REGISTER_CHECK_US
+        self._next_temp_us = now
+        self._read_temperature()
+        if self.drdy_pin is not None:
+            self._polling_fallback = False
+            self.schedule_delayed(4 * self.publish_interval_us)  # DRDY watchdog
+        else:
+            self.schedule_on_interval(self.publish_interval_us)
+
+    def _check_reg(self, reg: int, set_bits: int, clear_bits: int) -> str | None:
+        value = self.read_reg(reg)
+        if reg == WHO_AM_I:
+            ok = value == WHO_AM_I_VALUE
+        else:
+            ok = (value & set_bits) == set_bits and not value & clear_bits
+        return None if ok else (f"register 0x{reg:02X} read 0x{value:02X} (set 0x{set_bits:02X}"
+                                f" clear 0x{clear_bits:02X})")
+
+    def _check_all(self) -> str | None:
+        for row in REGISTER_CONFIG:
+            bad = self._check_reg(*row)
+            if bad is not None:
+                return bad
+        return None
+
+    def _fifo_reset(self) -> None:
+        """PX4's sequence: stop the sources, reset with the FIFO off, enable again."""
+        self.perf_fifo_reset.count()
+        self.write_reg(FIFO_EN, 0x00)
+        self.write_reg(USER_CTRL, 0x14)  # FIFO_RESET | I2C_IF_DIS, FIFO_EN off
+        self.write_reg(FIFO_EN, 0x78)
+        self.write_reg(USER_CTRL, 0x50)
+        self._drdy_count = 0
+        self._last_record = b""
+
+    def _read_temperature(self) -> None:
+        self._set_clock(DATA_CLOCK_HZ)
+        r = self.spi.transfer(bytes((TEMP_OUT_H | DIR_READ, 0, 0)))
+        raw = int.from_bytes(r[1:3], "big", signed=True)
+        t = raw / 340.0 + 36.53
+        if -40.0 <= t <= 85.0:
+            self.temperature = t
+            self._accel.temperature = self._gyro.temperature = t
+        else:
+            self._error(self.perf_bad_transfer)
+        self._next_temp_us += TEMPERATURE_US
+
+    def _reset_chip(self, why: str) -> None:
+        self.platform.error(self.name, f"{why}; resetting")
+        self.state = RESET
+        self._reset_failures = 0
+        self.schedule_clear()  # drop the poll interval or DRDY watchdog
+        self.schedule_now()
+
+    # -- FIFO_READ -------------------------------------------------------------------------------
+
+    def _cycle(self) -> None:
+        self.perf_interval.count()
+        now = self.platform.time_us()
+        if self.drdy_pin is not None:
+            self._watchdog()
+        self.perf_cycle.begin()
+        try:
+            self._read_fifo(now)
+        finally:
+            self.perf_cycle.end()
+        if self.state != FIFO_READ:
+            return
+        now = self.platform.time_us()
+        if now >= self._next_check_us:
+            self._next_check_us = now + REGISTER_CHECK_US
+            self._periodic_check()
+        if self.state == FIFO_READ and now >= self._next_temp_us:
+            self._read_temperature()
+
+    def _watchdog(self) -> None:
+        """Re-arm the DRDY timeout; a run without the ISR having asked for it is a timeout."""
+        if self._drdy_seen:
+            self._drdy_seen = False
+            if self._polling_fallback:
+                self._polling_fallback = False
+                self.platform.info(self.name, "data-ready interrupts are back")
+            self.schedule_delayed(4 * self.publish_interval_us)
+            return
+        self._error(self.perf_drdy_timeout)
+        self.perf_missed.count()
+        if not self._polling_fallback:
+            self._polling_fallback = True
+            self.platform.warn(self.name, f"no data-ready for {4 * self.publish_interval_us} us; "
+                                          f"polling the FIFO every {self.publish_interval_us} us")
+        self.schedule_delayed(self.publish_interval_us)
+
+    def _periodic_check(self) -> None:
+        """Re-read one configuration register (WHO_AM_I among them) per call."""
+        rows = REGISTER_CONFIG + ((WHO_AM_I, WHO_AM_I_VALUE, 0),)
+        row = rows[self._check_index % len(rows)]
+        self._check_index += 1
+        bad = self._check_reg(*row)
+        if bad is not None:
+            self._error(self.perf_bad_register)
+            self._reset_chip(f"configuration lost: {bad}")
+
+    def _no_answer_seen(self, what: str) -> None:
+        self._error(self.perf_bad_transfer)
+        self._no_answer += 1
+        if self._no_answer >= NO_ANSWER_RESET:
+            self._no_answer = 0
+            self._reset_chip(f"no answer ({what} all 0xFF, {NO_ANSWER_RESET} times)")
+
+    def _read_fifo(self, now_us: int) -> None:
+        self._set_clock(DATA_CLOCK_HZ)
+        transfer = self.spi.transfer
+        r = transfer(b"\xf2\x00\x00")  # FIFO_COUNTH | DIR_READ, then H and L
+        count = (r[1] << 8) | r[2]
+        if count == 0xFFFF:
+            self._no_answer_seen("FIFO count")
+            return
+        if count == 0:
+            self.perf_fifo_empty.count()
+            return
+        if count >= FIFO_SIZE:
+            self._error(self.perf_fifo_overflow)
+            self._fifo_reset()
+            return
+        n = count // RECORD_BYTES
+        if n == 0:
+            self.perf_fifo_empty.count()
+            return
+        tx = self._fifo_tx.get(n)
+        if tx is None:
+            tx = self._fifo_tx[n] = bytes((FIFO_R_W | DIR_READ,)) + bytes(n * RECORD_BYTES)
+        data = transfer(tx)[1:]
+        if not data.strip(b"\xff"):
+            self._no_answer_seen("FIFO data")
+            return
+        self._no_answer = 0
+        raw = struct.unpack(f">{6 * n}h", data)
+        if not self._accel_repeats(raw, n):
+            self._error(self.perf_bad_transfer)
+            self._corrupt += 1
+            if self._corrupt == 1 or self._corrupt % 1000 == 0:
+                self.platform.warn(self.name, f"corrupt FIFO data ({self._corrupt}x): accel "
+                                              f"not repeating at 8 kHz; FIFO reset")
+            self._fifo_reset()
+            return
+        self._check_stuck(data, n)
+        self._publish(raw, n, now_us)
+
+    @staticmethod
+    def _accel_repeats(raw: tuple[int, ...], n: int) -> bool:
+        """At 8 kHz the accelerometer (1 kHz) must repeat: at most one change per 8 records.
+        Corrupt or random data fails this long before it fails anything else."""
+        if n < 2:
+            return True
+        ax, ay, az = raw[0::6], raw[1::6], raw[2::6]
+        changes = sum(1 for i in range(1, n)
+                      if ax[i] != ax[i - 1] or ay[i] != ay[i - 1] or az[i] != az[i - 1])
+        return changes <= n // 8 + 1
+
+    def _check_stuck(self, data: bytes, n: int) -> None:
+        last = data[-RECORD_BYTES:]
+        same = last == self._last_record and data == last * n
+        self._last_record = last
+        if not same:
+            if self._stuck_cycles >= STUCK_CYCLES:
+                self.platform.info(self.name, "data is changing again")
+            self._stuck_cycles = 0
+            return
+        self._stuck_cycles += 1
+        if self._stuck_cycles == STUCK_CYCLES:
+            self._error(self.perf_stuck)
+            self.platform.warn(self.name, f"data stuck: {STUCK_CYCLES} FIFO reads of identical "
+                                          f"samples")
+
+    def _publish(self, raw: tuple[int, ...], n: int, now_us: int) -> None:
+        axes = [raw[i::6] for i in range(6)]
+        sa = self.accel_scale / n
+        sg = GYRO_SCALE / n
+        ax, ay, az = sum(axes[0]) * sa, sum(axes[1]) * sa, sum(axes[2]) * sa
+        gx, gy, gz = sum(axes[3]) * sg, sum(axes[4]) * sg, sum(axes[5]) * sg
+        rot = self.rotation
+        if rot is not None:
+            (r0, r1, r2) = rot
+            ax, ay, az = (r0[0] * ax + r0[1] * ay + r0[2] * az, r1[0] * ax + r1[1] * ay
+                          + r1[2] * az, r2[0] * ax + r2[1] * ay + r2[2] * az)
+            gx, gy, gz = (r0[0] * gx + r0[1] * gy + r0[2] * gz, r1[0] * gx + r1[1] * gy
+                          + r1[2] * gz, r2[0] * gx + r2[1] * gy + r2[2] * gz)
+        clipped = max(raw) >= 32767 or min(raw) <= -32767
+        if clipped and not self._clipping:
+            self.platform.warn(self.name, "clipping at full scale")
+        self._clipping = clipped
+        if self.drdy_pin is not None and not self._polling_fallback:
+            t_sample = self._last_drdy_ns // 1000
+        else:
+            t_sample = now_us
+        ts = self.platform.time_us()
+        a = self._accel
+        a.timestamp, a.timestamp_sample = ts, t_sample
+        a.x, a.y, a.z = ax, ay, az
+        a.error_count = self.error_count
+        a.samples = n
+        g = self._gyro
+        g.timestamp, g.timestamp_sample = ts, t_sample
+        g.x, g.y, g.z = gx, gy, gz
+        g.error_count = self.error_count
+        g.samples = n
+        if clipped:  # samples at a rail, per sensor axis (PX4 counts both rails)
+            c = [min(sum(1 for v in axis if v >= 32767 or v <= -32767), 255) for axis in axes]
+            a.clip_counter, g.clip_counter = c[:3], c[3:]
+        else:
+            a.clip_counter = g.clip_counter = [0, 0, 0]
+        self._pub_accel.publish(a)
+        self._pub_gyro.publish(g)
+        self.publications += 1

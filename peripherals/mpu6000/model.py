@@ -1,0 +1,482 @@
+"""InvenSense MPU-6000 on SPI: register file, lazy sampling, FIFO, data-ready pin, faults.
+
+Facts are from shared/reference/sensors.md section 1. Decisions the datasheet leaves open:
+
+* Lazy sampling. Samples are not kernel events. The chip's sample clock is a phase (``_t0``)
+  and a period; whenever the bus touches the chip (the command byte of a transfer) or a pin
+  event needs it, every sample due since the last look is produced in one numpy batch
+  (:mod:`.sampling`). The physical input is read once per batch, so all samples of a batch see
+  the environment as it is at the moment of the look (at most one driver cycle, 1 ms with PX4's
+  driver, late; the world itself steps at 1 kHz). Samples nobody can see (FIFO off: all but the
+  last; FIFO on: those pushed out by overflow) are skipped but still advance the filters, which
+  is exact because the input is constant within a batch.
+* Kernel events exist only for the INT pin: one per sample while INT_ENABLE.DATA_RDY_EN is set
+  and a pin is wired (plus the 50 us pulse end), one at the predicted overflow time while
+  FIFO_OFLOW_EN is set. With nothing enabled, an idle chip costs nothing.
+* SPI clock. The datasheet allows 1 MHz (+10 %) for all registers and 20 MHz (+10 %) for reading
+  INT_STATUS and the sensor data. The FIFO count and data port are served at 20 MHz too (PX4
+  reads them on its fast clock and real parts deliver). Above 22 MHz nothing is decoded (MISO
+  0xFF, base class). Between 1.1 and 22 MHz a read of any other register returns 0xFF (the
+  output stage cannot follow: the bits read at the rail) and writes are ignored; such a
+  selection is counted in ``too_fast_count`` and logged once.
+* DEVICE_RESET (and power-up) make the chip deaf for 100 ms: reads return 0x00, writes are
+  ignored. An unpowered or absent chip leaves MISO to its pull-up (0xFF).
+* Not modelled: the aux I2C master and its FIFO slots, the DMP, FSYNC, motion detection, low-power
+  CYCLE mode (treated as normal sampling), the 30 ms gyro start-up, user offset registers.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from board.kernel import NS_PER_MS, PRIO_HW, Kernel
+from board.spi import SpiTarget
+from peripherals.errors import AxisErrors, ImuErrorModel
+from peripherals.faults import FaultState
+from peripherals.mpu6000.registers import (
+    DATA_FIRST,
+    FAST_READ,
+    FIFO_SIZE,
+    REV_C_IDS,
+    SELF_TEST_TRIM,
+    mpu6000_registers,
+    self_test_response,
+)
+from peripherals.mpu6000.rotation import board_to_sensor
+from peripherals.mpu6000.sampling import SampleEngine
+from peripherals.physics import Environment
+from peripherals.regs import RegisterFile
+
+if TYPE_CHECKING:
+    from board.gpio import Pin
+
+__all__ = ["Mpu6000", "default_accel_errors", "default_gyro_errors"]
+
+log = logging.getLogger(__name__)
+
+G0 = 9.80665
+DEG = 0.017453292519943295
+RESET_TIME_NS = 100 * NS_PER_MS
+INT_PULSE_NS = 50_000
+REG_CLOCK_LIMIT_HZ = 1_100_000
+DATA_CLOCK_LIMIT_HZ = 22_000_000
+
+# Register addresses used on hot paths.
+_INT_STATUS, _FIFO_COUNTH, _FIFO_R_W = 0x3A, 0x72, 0x74
+_DATA_RDY_INT, _FIFO_OFLOW_INT = 0x01, 0x10
+
+
+def _nothing() -> None:
+    pass
+
+
+def default_gyro_errors() -> AxisErrors:
+    """Datasheet noise (0.005 deg/s/rtHz) on a part whose large initial zero-rate offset
+    (+-20 deg/s) has been trimmed, as a calibrated board looks: 0.1 deg/s bias spread."""
+    return AxisErrors(noise_density=0.005 * DEG, bias=0.1 * DEG, bias_instability=1e-5,
+                      scale_error=0.002, misalignment_rad=0.001)
+
+
+def default_accel_errors() -> AxisErrors:
+    """Datasheet noise (400 ug/rtHz) with a calibrated 2 mg bias spread."""
+    return AxisErrors(noise_density=400e-6 * G0, bias=0.002 * G0, scale_error=0.002,
+                      misalignment_rad=0.001)
+
+
+class Mpu6000(SpiTarget):
+    """The chip as the SPI bus and the INT pin see it.
+
+    ``rotation`` is how the die sits on the board: a PX4 rotation enum (int or name) or a
+    board->sensor 3x3 matrix (see :mod:`.rotation`). ``gyro_errors``/``accel_errors`` replace the
+    calibrated-part defaults; ``power_up_ms`` is the time from construction (power on) until
+    the chip answers. ``bias_step_sensor`` says where ``faults.bias_step`` (SI units) goes:
+    ``"gyro"`` (rad/s), ``"accel"`` (m/s^2) or ``"both"``.
+    """
+
+    max_clock_hz = DATA_CLOCK_LIMIT_HZ
+
+    def __init__(self, kernel: Kernel, env: Environment, rng: np.random.Generator,
+                 name: str = "mpu6000", drdy_pin: Pin | None = None, product_id: int = 0x58,
+                 rotation: int | str | Sequence[Sequence[float]] | None = None,
+                 gyro_errors: AxisErrors | None = None, accel_errors: AxisErrors | None = None,
+                 power_up_ms: float = 100.0, self_test_trim: tuple[int, int, int, int] =
+                 SELF_TEST_TRIM, bias_step_sensor: str = "gyro") -> None:
+        if not 0 <= product_id <= 0xFF:
+            raise ValueError(f"{name}: product_id 0x{product_id:X} is not a byte")
+        if bias_step_sensor not in ("gyro", "accel", "both"):
+            raise ValueError(f"{name}: bias_step_sensor must be gyro, accel or both")
+        self.kernel = kernel
+        self.env = env
+        self.rng = rng
+        self.name = name
+        self.drdy_pin = drdy_pin
+        self.product_id = product_id
+        self.faults = FaultState()
+        self.bias_step_sensor = bias_step_sensor
+        self.regs = RegisterFile(name, mpu6000_registers(product_id, self_test_trim))
+        self._bind_hooks()
+        self.engine = SampleEngine(
+            rng, board_to_sensor(rotation),
+            ImuErrorModel(gyro_errors or default_gyro_errors(), rng),
+            ImuErrorModel(accel_errors or default_accel_errors(), rng),
+            self_test_response(self_test_trim), rev_c=product_id in REV_C_IDS)
+        self.fifo = bytearray()
+        self._fifo_last = 0
+        self._count_latch = 0
+        #: Samples produced since power-on (lazily, see module docstring).
+        self.samples_produced = 0
+        self.powered = True
+        self._ready_ns = kernel.now_ns + int(power_up_ms * NS_PER_MS)
+        # Sampling clock.
+        self._awake = False
+        self._t0 = 0
+        self._k = 0
+        self._period = 125_000
+        # Transaction state.
+        self._t = 0
+        self._cmd = -1
+        self._addr = 0
+        self._reading = False
+        self._slow_only = False
+        self._refused = False
+        self._did_read = False
+        # INT pin.
+        self._int_active = False
+        self._drdy_entry: list | None = None
+        self._ovf_entry: list | None = None
+        self._release_entry: list | None = None
+        self._pin_on = self._pin_off = _nothing
+        self._retime()
+        self._int_idle()
+
+    # -- register behaviour ---------------------------------------------------------------------
+
+    def _bind_hooks(self) -> None:
+        r = self.regs
+        for name in ("SMPLRT_DIV", "CONFIG", "GYRO_CONFIG", "ACCEL_CONFIG", "PWR_MGMT_2"):
+            r.hook(name, on_write=self._on_config)
+        r.hook("PWR_MGMT_1", on_write=self._on_pwr_mgmt_1)
+        r.hook("USER_CTRL", on_write=self._on_user_ctrl)
+        r.hook("SIGNAL_PATH_RESET", on_write=self._on_signal_path_reset)
+        r.hook("FIFO_EN", on_write=self._on_int_config)
+        r.hook("INT_ENABLE", on_write=self._on_int_config)
+        r.hook("INT_PIN_CFG", on_write=self._on_int_pin_cfg)
+        r.hook("INT_STATUS", on_read=self._read_int_status)
+        r.hook("FIFO_COUNTH", on_read=self._read_count_h)
+        r.hook("FIFO_COUNTL", on_read=self._read_count_l)
+        r.hook("FIFO_R_W", on_read=self._read_fifo_byte, on_write=self._write_fifo_byte)
+        r.hook("WHO_AM_I", on_read=self._read_who_am_i)
+
+    def _on_config(self, value: int, old: int) -> None:
+        self._retime()
+
+    def _on_pwr_mgmt_1(self, value: int, old: int) -> None:
+        if value & 0x80:
+            self._device_reset(self._t)
+            return
+        self._retime()
+
+    def _on_user_ctrl(self, value: int, old: int) -> None:
+        if value & 0x04:  # FIFO_RESET
+            self.fifo.clear()
+        if value & 0x01:  # SIG_COND_RESET: signal paths and sensor registers
+            self.engine.reset_filters()
+            self.regs.values[DATA_FIRST:DATA_FIRST + 14] = bytes(14)
+        self.regs.values[0x6A] = value & ~0x0F & 0xFF  # strobes self-clear (DMP_RESET too)
+        self._schedule_int()
+
+    def _on_signal_path_reset(self, value: int, old: int) -> None:
+        self.engine.reset_filters(gyro=bool(value & 4), accel=bool(value & 2))
+        self.regs.values[0x68] = 0
+
+    def _on_int_config(self, value: int, old: int) -> None:
+        self._schedule_int()
+
+    def _on_int_pin_cfg(self, value: int, old: int) -> None:
+        if self._int_active and not value & 0x20:
+            self._int_active = False  # leaving latched mode ends a held level
+        self._int_level()
+        self._schedule_int()
+
+    def _read_int_status(self, value: int) -> int:
+        self.regs.values[_INT_STATUS] = 0
+        if self._int_active and self.regs.values[0x37] & 0x20:
+            self._int_active = False
+            self._int_level()
+        return value
+
+    def _read_count_h(self, value: int) -> int:
+        self._count_latch = len(self.fifo)
+        return self._count_latch >> 8
+
+    def _read_count_l(self, value: int) -> int:
+        return self._count_latch & 0xFF
+
+    def _read_fifo_byte(self, value: int) -> int:
+        return self._fifo_pop(1)[0]
+
+    def _write_fifo_byte(self, value: int, old: int) -> None:
+        self._fifo_push(bytes((value,)))
+
+    def _read_who_am_i(self, value: int) -> int:
+        wrong = self.faults.wrong_id
+        return value if wrong is None else wrong & 0xFF
+
+    # -- power and reset ------------------------------------------------------------------------
+
+    def _device_reset(self, t_ns: int) -> None:
+        """DEVICE_RESET: every register to its reset value, FIFO empty, asleep, deaf 100 ms."""
+        self.regs.reset()
+        self.fifo.clear()
+        self._fifo_last = 0
+        self.engine.reset_filters()
+        self._ready_ns = t_ns + RESET_TIME_NS
+        self._int_active = False
+        self._retime()
+        self._int_idle()
+
+    def set_power(self, on: bool) -> None:
+        """The sensor rail (PE3 on FMUv2): off makes the chip vanish, on is a power-on reset."""
+        self._t = t = self.kernel.context_ns
+        if on and not self.powered:
+            self.powered = True
+            self._device_reset(t)
+        elif not on and self.powered:
+            self._catch_up(t)
+            self.powered = False
+            self._awake = False
+            self._schedule_int()
+
+    # -- sampling clock -------------------------------------------------------------------------
+
+    def _sample_period_ns(self) -> int:
+        v = self.regs.values
+        fast = (v[0x1A] & 7) in (0, 7)
+        return (125_000 if fast else 1_000_000) * (1 + v[0x19])
+
+    def _retime(self) -> None:
+        """A register that shapes sampling changed (the caller caught up to ``_t`` first)."""
+        v = self.regs.values
+        t = self._t
+        awake = self.powered and not v[0x6B] & 0x40 and (v[0x6B] & 7) != 7
+        period = self._sample_period_ns()
+        if self._awake and awake:
+            self._t0 += self._k * self._period  # keep the phase: next sample one period on
+            self._k = 0
+        elif awake:
+            self._t0 = t
+            self._k = 0
+            self.engine.wake(t)
+        self._period = period
+        self._awake = awake
+        self.engine.configure(v[0x1A] & 7, v[0x19], (v[0x1B] >> 3) & 3, (v[0x1C] >> 3) & 3,
+                              v[0x1B] & 0xE0, v[0x1C] & 0xE0, v[0x6C])
+        self._schedule_int()
+
+    def _catch_up(self, t_ns: int) -> None:
+        """Produce every sample due at or before ``t_ns``."""
+        if not self._awake:
+            return
+        k_max = (t_ns - self._t0) // self._period
+        n = k_max - self._k
+        if n <= 0:
+            return
+        v = self.regs.values
+        fifo_en = v[0x23] if v[0x6A] & 0x40 else 0
+        rows, record = self.engine.produce(
+            self.env, self._t0, self._period, self._k + 1, n, fifo_en, FIFO_SIZE,
+            self.faults, self.bias_step_sensor, temp_enabled=not v[0x6B] & 0x08)
+        self._k = k_max
+        self.samples_produced += n
+        v[DATA_FIRST:DATA_FIRST + 14] = rows
+        if record:
+            self._fifo_push(record)  # sets FIFO_OFLOW_INT when the oldest bytes are lost
+        v[_INT_STATUS] |= _DATA_RDY_INT
+
+    # -- FIFO -----------------------------------------------------------------------------------
+
+    def _fifo_push(self, data: bytes) -> None:
+        fifo = self.fifo
+        fifo += data
+        excess = len(fifo) - FIFO_SIZE
+        if excess > 0:
+            del fifo[:excess]  # the oldest bytes are lost; record alignment goes with them
+            self.regs.values[_INT_STATUS] |= _FIFO_OFLOW_INT
+
+    def _fifo_pop(self, n: int) -> bytes:
+        fifo = self.fifo
+        have = len(fifo)
+        if n <= have:
+            out = bytes(fifo[:n])
+            del fifo[:n]
+        else:  # an empty FIFO repeats the last byte read
+            last = fifo[-1] if have else self._fifo_last
+            out = bytes(fifo) + bytes((last,)) * (n - have)
+            fifo.clear()
+        if out:
+            self._fifo_last = out[-1]
+        return out
+
+    # -- SPI ------------------------------------------------------------------------------------
+
+    def _select(self, t_ns: int, mode: int, clock_hz: int) -> None:
+        self._cmd = -1
+        self._slow_only = clock_hz > REG_CLOCK_LIMIT_HZ
+        self._refused = False
+        self._did_read = False
+
+    def _exchange(self, t_ns: int, tx: bytes) -> bytes:
+        n = len(tx)
+        if not self.powered or self.faults.absent:
+            return b"\xff" * n
+        if t_ns < self._ready_ns:
+            self._cmd = 0x100  # deaf: nothing decoded in this selection
+            return bytes(n)
+        start = 0
+        if self._cmd < 0:
+            c = self._cmd = tx[0]
+            self._reading = bool(c & 0x80)
+            self._addr = c & 0x7F
+            self._t = t_ns
+            self._catch_up(t_ns)
+            start = 1
+        elif self._cmd > 0xFF:
+            return bytes(n)
+        if start >= n:
+            return bytes(n)
+        if self._reading:
+            self._did_read = True
+            if self._addr == _FIFO_R_W:
+                return (b"\x00" if start else b"") + self._fifo_pop(n - start)
+            return (b"\x00" if start else b"") + self._read_bytes(n - start)
+        self._write_bytes(tx[start:])
+        return bytes(n)
+
+    def _read_bytes(self, n: int) -> bytes:
+        out = bytearray(n)
+        addr = self._addr
+        read = self.regs.read
+        slow_only = self._slow_only
+        for i in range(n):
+            if slow_only and addr not in FAST_READ:
+                out[i] = 0xFF
+                self._refused = True
+            else:
+                out[i] = read(addr)
+            if addr != _FIFO_R_W:
+                addr = (addr + 1) & 0x7F
+        self._addr = addr
+        return bytes(out)
+
+    def _write_bytes(self, data: bytes) -> None:
+        if self._slow_only:
+            self._refused = True
+            return
+        addr = self._addr
+        for b in data:
+            if self._t < self._ready_ns:  # a DEVICE_RESET earlier in this burst
+                break
+            self.regs.write(addr, b)
+            if addr != _FIFO_R_W:
+                addr = (addr + 1) & 0x7F
+        self._addr = addr
+
+    def _deselect(self, t_ns: int) -> None:
+        if self._refused:
+            self.too_fast_count += 1
+            if self.too_fast_count == 1:
+                log.warning("%s: register access at %d Hz above the 1.1 MHz limit: reads 0xFF, "
+                            "writes ignored", self.name, self.clock_hz)
+        if self._did_read and self.regs.values[0x37] & 0x10:  # INT_RD_CLEAR
+            self._read_int_status(0)
+        if self._ovf_entry is not None or self.regs.values[0x38] & 0x10:
+            self._schedule_int()
+
+    # -- INT pin --------------------------------------------------------------------------------
+
+    def _int_level(self) -> None:
+        """Drive the pin to match ``_int_active`` and INT_PIN_CFG (level, open drain)."""
+        pin = self.drdy_pin
+        if pin is None or not self.powered:
+            return
+        cfg = self.regs.values[0x37]
+        active_low = bool(cfg & 0x80)
+        # Bound methods for the per-sample path: assert, and return to idle.
+        self._pin_on = pin.low if active_low else pin.high
+        self._pin_off = pin.release if cfg & 0x40 else (pin.high if active_low else pin.low)
+        if self._int_active:
+            self._pin_on()
+        else:
+            self._pin_off()
+
+    def _int_idle(self) -> None:
+        self._int_active = False
+        self._int_level()
+
+    def _assert_int(self) -> None:
+        faults = self.faults
+        if faults.drdy_stuck or faults.absent:
+            return
+        if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
+            if not self._int_active:
+                self._int_active = True
+                self._pin_on()
+            return
+        k = self.kernel
+        if self._int_active:  # a pulse still running: extend it
+            if self._release_entry is not None:
+                self._release_entry[3] = None
+        else:
+            self._int_active = True
+            self._pin_on()
+        self._release_entry = k.post(k.now_ns + INT_PULSE_NS, PRIO_HW, self._pulse_end, ())
+
+    def _pulse_end(self) -> None:
+        if self._int_active and not self.regs.values[0x37] & 0x20:
+            self._int_active = False
+            self._pin_off()
+
+    def _schedule_int(self) -> None:
+        """(Re)arm the kernel events that move the INT pin; none when nothing can be seen."""
+        k = self.kernel
+        if self._drdy_entry is not None:
+            self._drdy_entry[3] = None
+            self._drdy_entry = None
+        if self._ovf_entry is not None:
+            self._ovf_entry[3] = None
+            self._ovf_entry = None
+        if self.drdy_pin is None or not self._awake:
+            return
+        v = self.regs.values
+        t = max(self._t, k.now_ns)
+        k_next = (t - self._t0) // self._period + 1
+        if v[0x38] & 0x01:
+            self._drdy_entry = k.post(self._t0 + k_next * self._period, PRIO_HW,
+                                      self._on_drdy, ())
+        if v[0x38] & 0x10 and v[0x6A] & 0x40:
+            rec = self.engine.record_bytes(v[0x23])
+            if rec:
+                k_ovf = self._k + (FIFO_SIZE - len(self.fifo)) // rec + 1
+                self._ovf_entry = k.post(self._t0 + max(k_ovf, k_next) * self._period,
+                                         PRIO_HW, self._on_overflow, ())
+
+    def _on_drdy(self) -> None:
+        k = self.kernel
+        self._drdy_entry = k.post(k.now_ns + self._period, PRIO_HW, self._on_drdy, ())
+        self._assert_int()
+
+    def _on_overflow(self) -> None:
+        self._ovf_entry = None
+        self._t = t = self.kernel.now_ns
+        self._catch_up(t)
+        if self.regs.values[_INT_STATUS] & _FIFO_OFLOW_INT:
+            self._assert_int()
+        self._schedule_int()
+
+    def __repr__(self) -> str:
+        return (f"<Mpu6000 {self.name} {'awake' if self._awake else 'asleep'} "
+                f"fifo={len(self.fifo)}>")
