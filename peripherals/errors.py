@@ -80,19 +80,20 @@ class ImuErrorModel:
                 step = p.bias_instability * math.sqrt(dt)
                 n = self._normals(3)
                 d = self.drift
-                d[0] += step * n[0]
-                d[1] += step * n[1]
-                d[2] += step * n[2]
+                # float(): numpy scalars would make every later operation slower.
+                d[0] += float(step * n[0])
+                d[1] += float(step * n[1])
+                d[2] += float(step * n[2])
         self._last_t_ns = t_ns
         b = self.bias
         e = self.extra_bias
         d = self.drift
         tc = p.temp_coeff * (temperature_c - 25.0)
         if sigma:
-            n = self._normals(3)
-            return (vx + b[0] + e[0] + d[0] + tc + sigma * n[0],
-                    vy + b[1] + e[1] + d[1] + tc + sigma * n[1],
-                    vz + b[2] + e[2] + d[2] + tc + sigma * n[2])
+            n0, n1, n2 = self._normals(3).tolist()
+            return (vx + b[0] + e[0] + d[0] + tc + sigma * n0,
+                    vy + b[1] + e[1] + d[1] + tc + sigma * n1,
+                    vz + b[2] + e[2] + d[2] + tc + sigma * n2)
         return (vx + b[0] + e[0] + d[0] + tc, vy + b[1] + e[1] + d[1] + tc,
                 vz + b[2] + e[2] + d[2] + tc)
 

@@ -43,6 +43,7 @@ from board.kernel import PRIO_HW, Kernel
 from board.spi import SpiTarget
 from peripherals.faults import FaultState
 from peripherals.regs import RegisterFile
+from firmware.lib.rotation import board_to_sensor
 
 __all__ = [
     "BOOT_NS",
@@ -78,16 +79,10 @@ Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
 Vec3 = tuple[float, float, float]
 
 
-def check_rotation(rotation: Sequence[Sequence[float]] | None) -> Matrix3 | None:
-    """Validate an optional 3x3 board->sensor matrix; identity becomes None (the fast path)."""
-    if rotation is None:
-        return None
-    rows = [tuple(float(v) for v in row) for row in rotation]
-    if len(rows) != 3 or any(len(r) != 3 for r in rows):
-        raise ValueError(f"rotation must be a 3x3 board->sensor matrix, got {rotation!r}")
-    if rows == [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)]:
-        return None
-    return tuple(rows)  # type: ignore[return-value]
+def check_rotation(rotation: int | str | Sequence[Sequence[float]] | None) -> Matrix3 | None:
+    """The board->sensor matrix of a mounting (a PX4 rotation enum or name, or a 3x3
+    board->sensor matrix); identity becomes None (the fast path)."""
+    return board_to_sensor(rotation)
 
 
 def rotate(m: Matrix3 | None, v: Sequence[float]) -> Vec3:
