@@ -37,4 +37,10 @@ FIGURES: list[Figure] = [
            "x real time", "as above, boards with a 1 kHz tick (no exchange skipped)", 3),
     Figure("rtf_jsbsim_only", "bench_world:bench_rtf_jsbsim_only", "x real time",
            "the F450 world alone at 1 kHz (reference for the figure above)", 3),
+    Figure("sbus_frames_decoded_per_s", "bench_rc:bench_sbus_frames_decoded_per_s", "frames/s",
+           "S.BUS frames fed byte by byte with timestamps into the IO's decoder", 5),
+    Figure("px4io_transactions_per_s", "bench_px4io:bench_px4io_transactions_per_s",
+           "transactions/s", "FMU encode + IO request handler + FMU decode, typical mix", 5),
+    Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
+           "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]
