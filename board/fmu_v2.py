@@ -1,0 +1,208 @@
+"""The Pixhawk 1 FMU (PX4 fmu-v2) as a board: the spec's devices on their buses and pins.
+
+Built from :data:`board.specs.FMU_V2`: SPI1 with the MPU6000, L3GD20, LSM303D and MS5611 and
+their data-ready lines, SPI2 with the FRAM (persisted in a host file), I2C1 with the GPS
+module's HMC5883L, the UARTs (UART4 wired to the u-blox module on the GPS connector), ADC1 with
+the power module's voltage and current.
+
+Ports that leave the board (see board/wiring.py):
+
+* ``truth`` (in): the world's truth record; it updates the :class:`Environment` every sensor
+  model reads (the physical quantities at the board, not a back door into any chip).
+* ``power`` (in): ``(volts, amps)`` at the power module, which the ADC pins see through the
+  module's dividers.
+* ``io_link`` (USART6), ``telem1``, ``telem2``, ``console``: UARTs.
+
+Sensor start-up (:meth:`FmuV2Board.start_sensors`) does what PX4's ``rc.board_sensors`` does for
+this board: it creates each driver on its bus handle and starts it; a driver that refuses (a
+wrong ID, a missing chip) says why in dmesg and the others go on.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from board.adc import Adc
+from board.board import Board
+from board.gpio import Gpio
+from board.i2c import I2cBus
+from board.spi import SpiBus
+from board.specs import FMU_V2, BoardSpecData, model_class
+from board.uart import Uart, UartConfig
+from firmware.platform import Platform
+from peripherals.errors import rng_for
+from peripherals.physics import Environment
+
+__all__ = ["FmuV2Board", "TRUTH_KEYS", "BOOT_TO_SENSORS_NS"]
+
+#: Virtual time from power-on until the start-up script starts the sensor drivers (NuttX boot,
+#: mounting, parameter load). The sensors power up meanwhile (the MPU6000 needs 100 ms).
+BOOT_TO_SENSORS_NS = 300_000_000
+
+#: Field order of a truth record (hil.worldlink.TRUTH_FIELDS); kept here so the board does not
+#: import the world.
+TRUTH_KEYS = ("t_ns", "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag_body_gauss",
+              "pressure_pa", "temperature_c", "lat_deg", "lon_deg", "alt_m", "agl_m",
+              "pos_ned_m", "vel_ned_m_s", "airspeed_m_s", "diff_pressure_pa", "battery_v",
+              "battery_a")
+
+# SPI clocks PX4 uses per device for register access (data reads switch faster themselves).
+_SPI_CLOCK = {"mpu6000": 1_000_000, "l3gd20": 11_000_000, "lsm303d": 11_000_000,
+              "ms5611": 20_000_000, "fm25v01": 20_000_000}
+
+
+class FmuV2Board(Board):
+    """The FMU: STM32F427 with the FMUv2 sensor set."""
+
+    def __init__(self, name: str = "fmu", seed: int = 0, fram_path: str | None = None,
+                 sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
+                 start_sensors: bool = True, exclude: tuple[str, ...] = (),
+                 gps_baud: int = 38_400) -> None:
+        super().__init__(name, seed)
+        k = self.kernel
+        self.spec = spec
+        self.env = Environment()
+        self.gpio = Gpio(k, f"{name}.gpio")
+        self.platform = Platform(k)
+        self.sd_root = sd_root
+        self.spi = {b.name: SpiBus(k, b.name, pclk_hz=b.pclk_hz) for b in spec.spi}
+        self.i2c = {b.name: I2cBus(k, b.name, clock_hz=b.clock_hz) for b in spec.i2c}
+        self.uarts = {u.name: Uart(k, u.name, UartConfig(baud=u.baud)) for u in spec.uarts}
+        self.adc = Adc(k, "ADC1", bits=12, vref_v=3.3)
+        self.devices: dict[str, Any] = {}
+        self.drivers: dict[str, Any] = {}
+        self._excluded = set(exclude)
+        self._fram_path = fram_path
+        # GPS modules sold for the Pixhawk are usually re-saved at 38400 (a factory u-blox M8
+        # starts at 9600, which costs the driver a full baud scan: pass gps_baud=9600).
+        self._gps_baud = gps_baud
+        self._build_devices()
+        self._expose_ports()
+        self._power_v = 0.0
+        self._power_a = 0.0
+        for ch in spec.adc:
+            if ch.signal == "battery_voltage":
+                self.adc.set_source(ch.channel, lambda t, s=ch.scale: self._power_v / s)
+            elif ch.signal == "battery_current":
+                self.adc.set_source(ch.channel, lambda t, s=ch.scale: self._power_a / s)
+            elif ch.signal == "vdd_5v":
+                self.adc.set_source(ch.channel, 5.0 / ch.scale)
+        if start_sensors:
+            k.call_at(BOOT_TO_SENSORS_NS, self.start_sensors)
+
+    # -- construction -----------------------------------------------------------------------
+
+    def _rng(self, device: str) -> Any:
+        return rng_for(self.seed, f"{self.name}.{device}")
+
+    def _build_devices(self) -> None:
+        k, env = self.kernel, self.env
+        for bus in self.spec.spi:
+            spi = self.spi[bus.name]
+            for dev in bus.devices:
+                if dev.name in self._excluded:
+                    continue
+                cls = model_class(dev.model)
+                pins = [self.gpio.pin(p) for p in dev.drdy]
+                if dev.model == "fm25v01":
+                    path = self._fram_path
+                    if path is not None:
+                        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+                    model = cls(k, name=dev.name, path=path)
+                elif dev.model == "lsm303d":
+                    model = cls(k, env, self._rng(dev.name), name=dev.name,
+                                int1_pin=pins[0] if pins else None,
+                                int2_pin=pins[1] if len(pins) > 1 else None)
+                elif dev.model == "ms5611":
+                    model = cls(k, env, self._rng(dev.name), name=dev.name)
+                else:
+                    model = cls(k, env, self._rng(dev.name), name=dev.name,
+                                drdy_pin=pins[0] if pins else None)
+                spi.attach(dev.cs, model)
+                self.devices[dev.name] = model
+        for ibus in self.spec.i2c:
+            for idev in ibus.devices:
+                if idev.name in self._excluded:
+                    continue
+                model = model_class(idev.model)(k, env, self._rng(idev.name), name=idev.name)
+                self.i2c[ibus.name].attach(idev.address, model)
+                self.devices[idev.name] = model
+        for u in self.spec.uarts:
+            if u.external_model is None or u.external_model in self._excluded:
+                continue
+            # The module plugged into the connector has its own UART, wired to ours.
+            from board.uart import UartWire
+
+            cls = model_class(u.external_model)
+            model = cls(k, env, self._rng(u.role), name=u.role, baud=self._gps_baud)
+            UartWire(self.uarts[u.name], model.uart)
+            self.devices[u.role] = model
+
+    def _expose_ports(self) -> None:
+        for u in self.spec.uarts:
+            if u.port is not None:
+                self.expose_uart(u.port, self.uarts[u.name])
+        self.expose_input("truth", self._on_truth)
+        self.expose_input("power", self._on_power)
+
+    def _on_truth(self, t_ns: int, record: Any) -> None:
+        self.env.update_from_truth(t_ns, dict(zip(TRUTH_KEYS, record)))
+
+    def _on_power(self, t_ns: int, record: Any) -> None:
+        self._power_v, self._power_a = record
+
+    # -- firmware start-up -------------------------------------------------------------------
+
+    def spi_handle(self, device: str) -> Any:
+        for bus in self.spec.spi:
+            for dev in bus.devices:
+                if dev.name == device:
+                    return self.spi[bus.name].device(dev.cs, mode=3,
+                                                     clock_hz=_SPI_CLOCK.get(dev.model, 1_000_000))
+        raise KeyError(device)
+
+    def start_sensors(self) -> dict[str, bool]:
+        """Create and start every sensor driver of this board (PX4's rc.board_sensors)."""
+        from firmware.drivers.barometer.ms5611 import Ms5611Driver
+        from firmware.drivers.gps.gps import GpsDriver
+        from firmware.drivers.imu.l3gd20 import L3gd20Driver
+        from firmware.drivers.imu.lsm303d import Lsm303dDriver
+        from firmware.drivers.imu.mpu6000 import Mpu6000Driver
+        from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
+
+        p = self.platform
+        pin = self.gpio.pin
+        makers = {
+            "mpu6000": lambda: Mpu6000Driver(p, self.spi_handle("mpu6000"), drdy_pin=pin("PD15")),
+            "l3gd20": lambda: L3gd20Driver(p, self.spi_handle("l3gd20"), drdy_pin=pin("PB0")),
+            "lsm303d": lambda: Lsm303dDriver(p, self.spi_handle("lsm303d")),
+            "ms5611": lambda: Ms5611Driver(p, self.spi_handle("ms5611")),
+            "hmc5883": lambda: Hmc5883Driver(p, self.i2c["I2C1"].device(0x1E), bus=1),
+            "gps": lambda: GpsDriver(p, self.uarts["UART4"]),
+        }
+        started = {}
+        for name, make in makers.items():
+            if name in self._excluded:
+                continue
+            driver = make()
+            self.drivers[name] = driver
+            started[name] = driver.start()
+        return started
+
+    # -- control calls (tests, shell, fault injection) ---------------------------------------
+
+    def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
+        return list(self.platform.dmesg)
+
+    def ctl_topic(self, topic: str, instance: int = 0) -> dict[str, Any] | None:
+        """The latest message of a topic instance as a dict (tests and tools)."""
+        node = self.platform.orb.node(topic, instance)
+        msg = node.last
+        if msg is None:
+            return None
+        return {f: getattr(msg, f) for f in msg._fields} | {"_count": node.publish_count}
+
+    def ctl_fault(self, device: str, fault: str, value: Any = True) -> None:
+        """Set a fault on a device model (see peripherals/faults.py)."""
+        setattr(self.devices[device].faults, fault, value)
