@@ -52,14 +52,21 @@ def test_every_topic_format_matches_its_msg_types():
     u = read(buf)
     assert not u.file_corruption
     assert sorted(d.name for d in u.data_list) == topics
+    def flat(mdef, prefix=""):
+        """(field, C type) as pyulog expands them: arrays indexed, nested types dotted."""
+        out = []
+        for f in mdef.fields:
+            names = ([f"{prefix}{f.name}[{i}]" for i in range(f.array)] if f.array
+                     else [f"{prefix}{f.name}"])
+            for name in names:
+                if f.type in PRIMITIVES:
+                    out.append((name, PRIMITIVES[f.type][3]))
+                else:
+                    out += flat(reg.messages[f.type], name + ".")
+        return out
+
     for d in u.data_list:
-        expected = []
-        for f in reg.topic(d.name).fields:
-            ctype = PRIMITIVES[f.type][3]
-            if f.array:
-                expected += [(f"{f.name}[{i}]", ctype) for i in range(f.array)]
-            else:
-                expected.append((f.name, ctype))
+        expected = flat(reg.topic(d.name))
         assert [(x.field_name, x.type_str) for x in d.field_data] == expected, d.name
         assert list(d.data["timestamp"]) == [1000]
 
