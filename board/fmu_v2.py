@@ -13,9 +13,15 @@ Ports that leave the board (see board/wiring.py):
   module's dividers.
 * ``io_link`` (USART6), ``telem1``, ``telem2``, ``console``: UARTs.
 
-Sensor start-up (:meth:`FmuV2Board.start_sensors`) does what PX4's ``rc.board_sensors`` does for
-this board: it creates each driver on its bus handle and starts it; a driver that refuses (a
-wrong ID, a missing chip) says why in dmesg and the others go on.
+Firmware start-up (``firmware=``):
+
+* ``"rcS"`` (default): what the real board does. The FRAM MTD driver starts, the parameters
+  load from FRAM, and the nsh shell runs the ROMFS ``rcS``, which starts the drivers and modules
+  for the airframe in ``SYS_AUTOSTART``. Parameter overrides given to the board (``params=``)
+  are written to FRAM first, as a user would set them and reboot. The shell also serves the
+  console UART (UART7, port ``console``) and :meth:`FmuV2Board.ctl_shell`.
+* ``"sensors"``: only the sensor drivers (PX4's ``rc.board_sensors``), for driver work.
+* ``"none"``: bare hardware.
 """
 
 from __future__ import annotations
@@ -57,8 +63,11 @@ class FmuV2Board(Board):
 
     def __init__(self, name: str = "fmu", seed: int = 0, fram_path: str | None = None,
                  sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
-                 start_sensors: bool = True, exclude: tuple[str, ...] = (),
-                 gps_baud: int = 38_400) -> None:
+                 firmware: str = "rcS", exclude: tuple[str, ...] = (),
+                 gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
+                 host_clock: Any = None) -> None:
+        if firmware not in ("rcS", "sensors", "none"):
+            raise ValueError(f"firmware must be 'rcS', 'sensors' or 'none', got {firmware!r}")
         super().__init__(name, seed)
         k = self.kernel
         self.spec = spec
@@ -66,6 +75,13 @@ class FmuV2Board(Board):
         self.gpio = Gpio(k, f"{name}.gpio")
         self.platform = Platform(k)
         self.sd_root = sd_root
+        self.system: Any = None
+        self.shell: Any = None
+        self._param_overrides = dict(params or {})
+        self._host_clock = host_clock
+        self._console_line = bytearray()
+        self._ctl_shell: Any = None
+        self.reboot_requested = False
         self.spi = {b.name: SpiBus(k, b.name, pclk_hz=b.pclk_hz) for b in spec.spi}
         self.i2c = {b.name: I2cBus(k, b.name, clock_hz=b.clock_hz) for b in spec.i2c}
         self.uarts = {u.name: Uart(k, u.name, UartConfig(baud=u.baud)) for u in spec.uarts}
@@ -88,7 +104,9 @@ class FmuV2Board(Board):
                 self.adc.set_source(ch.channel, lambda t, s=ch.scale: self._power_a / s)
             elif ch.signal == "vdd_5v":
                 self.adc.set_source(ch.channel, 5.0 / ch.scale)
-        if start_sensors:
+        if firmware == "rcS":
+            k.call_at(BOOT_TO_SENSORS_NS, self.boot)
+        elif firmware == "sensors":
             k.call_at(BOOT_TO_SENSORS_NS, self.start_sensors)
 
     # -- construction -----------------------------------------------------------------------
@@ -154,6 +172,76 @@ class FmuV2Board(Board):
 
     # -- firmware start-up -------------------------------------------------------------------
 
+    def uart_by_device(self, device: str) -> Uart | None:
+        """The UART behind a NuttX device name such as ``/dev/ttyS3``."""
+        for u in self.spec.uarts:
+            if u.device == device:
+                return self.uarts[u.name]
+        return None
+
+    def boot(self) -> None:
+        """Start the firmware as the real board does: FRAM, parameters, shell, rcS."""
+        from firmware import romfs
+        from firmware.modules import system_params
+        from firmware.platform.module import ModuleRegistry
+        from firmware.platform.params import Params, ParamStorage
+        from firmware.shell import Shell
+        from firmware.system import System
+
+        p = self.platform
+        registry = ModuleRegistry(None)
+        console = self.uarts["UART7"]
+        self.system = system = System(p, None, modules=registry, board=self.spec,
+                                      sd_root=self.sd_root, reboot=self._reboot_request,
+                                      host_clock=self._host_clock,
+                                      console=lambda text: console.write(text.encode()))
+        system.hw = self
+        defs = list(system_params.PARAMS) + registry.param_defs()
+        storage = None
+        if registry.start("mtd") == 0:
+            storage = ParamStorage(registry.get("mtd").partition("params"))
+        params = Params(p, defs, storage)
+        system.params = params
+        if self._param_overrides and storage is not None:
+            params.load()
+            if "SYS_AUTOSTART" in self._param_overrides and \
+                    params["SYS_AUTOSTART"] != self._param_overrides["SYS_AUTOSTART"]:
+                params.set("SYS_AUTOCONFIG", 1, notify=False)  # as QGC does on a new airframe
+            for name, value in self._param_overrides.items():
+                params.set(name, value, notify=False)
+            params.save()
+        elif self._param_overrides:
+            for name, value in self._param_overrides.items():
+                params.set(name, value, notify=False)
+        self.shell = Shell(system, output=lambda text: console.write(text.encode()))
+        console.on_rx(self._console_rx)
+        romfs.boot(self.shell)
+
+    def _reboot_request(self, to_bootloader: bool) -> None:
+        self.platform.warn("reboot", "reboot requested; the orchestrator restarts the board")
+        self.reboot_requested = True
+
+    def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
+        """Bytes typed on the console UART: echo, and run each line on the shell."""
+        if byte in (0x0D, 0x0A):
+            line = self._console_line.decode("latin-1")
+            self._console_line.clear()
+            self.uarts["UART7"].write(b"\r\n")
+            k = self.kernel
+            # The shell is a thread: run the command after this interrupt, not inside it.
+            k.call_at(k.now_ns, self._console_exec, line, priority=200)
+        elif byte in (0x08, 0x7F):
+            if self._console_line:
+                self._console_line.pop()
+        else:
+            self._console_line.append(byte)
+            self.uarts["UART7"].write(bytes((byte,)))
+
+    def _console_exec(self, line: str) -> None:
+        if self.shell is not None and line.strip():
+            self.shell.execute(line)
+        self.uarts["UART7"].write(b"nsh> ")
+
     def spi_handle(self, device: str) -> Any:
         for bus in self.spec.spi:
             for dev in bus.devices:
@@ -191,6 +279,19 @@ class FmuV2Board(Board):
         return started
 
     # -- control calls (tests, shell, fault injection) ---------------------------------------
+
+    def ctl_shell(self, line: str) -> tuple[int, str]:
+        """Run one shell command now; returns (exit status, output)."""
+        if self.shell is None:
+            return 1, "nsh: the firmware has not booted the shell (firmware='rcS' boots it)\n"
+        from firmware.shell import Shell
+
+        out: list[str] = []
+        if self._ctl_shell is None:  # a session of its own, like nsh on another port
+            self._ctl_shell = Shell(self.system)
+        self._ctl_shell.output = out.append
+        status = self._ctl_shell.execute(line)
+        return status, "".join(out)
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)

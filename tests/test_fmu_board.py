@@ -20,7 +20,7 @@ G = 9.80665
 
 @pytest.fixture(scope="module")
 def still_board():
-    board = FmuV2Board(seed=7)
+    board = FmuV2Board(seed=7, firmware="sensors")
     table = Turntable(board.kernel, board.env, roll_deg=10.0, pitch_deg=-5.0, yaw_deg=30.0,
                       alt_m=488.0)
     board.kernel.run(BOOT_TO_SENSORS_NS + 2 * S)

@@ -259,13 +259,13 @@ class WorkItemModule(ModuleBase):
 #: does not exist yet are allowed: starting one prints "not available" and a script goes on.
 #: Owners of drivers/modules: point these at your ModuleBase subclass (or adapter).
 FMU_V2_MODULES: dict[str, str] = {
-    "mpu6000": "firmware.drivers.imu.mpu6000:Mpu6000Module",
-    "l3gd20": "firmware.drivers.imu.l3gd20:L3gd20Module",
-    "lsm303d": "firmware.drivers.imu.lsm303d:Lsm303dModule",
-    "ms5611": "firmware.drivers.barometer.ms5611:Ms5611Module",
-    "hmc5883": "firmware.drivers.magnetometer.hmc5883:Hmc5883Module",
-    "gps": "firmware.drivers.gps.gps:GpsModule",
-    "mtd": "firmware.drivers.mtd.fram:MtdModule",
+    "mpu6000": "firmware.drivers.modules:Mpu6000Module",
+    "l3gd20": "firmware.drivers.modules:L3gd20Module",
+    "lsm303d": "firmware.drivers.modules:Lsm303dModule",
+    "ms5611": "firmware.drivers.modules:Ms5611Module",
+    "hmc5883": "firmware.drivers.modules:Hmc5883Module",
+    "gps": "firmware.drivers.modules:GpsModule",
+    "mtd": "firmware.drivers.modules:MtdModule",
     "px4io": "firmware.drivers.px4io:Px4ioModule",
     "fmu": "firmware.drivers.px4fmu:FmuModule",
     "sensors": "firmware.modules.sensors:SensorsModule",
