@@ -15,9 +15,12 @@ def dummy(name):
     return type(f"Dummy_{name}", (ModuleBase,), {"NAME": name})
 
 
-#: modules this tree may not have yet, replaced by dummies; the rest stay "not available"
+#: modules replaced by dummies (no board hardware in these tests)
 DUMMIES = ("mpu6000", "sensors", "commander", "px4io", "fmu", "ekf2", "mc_att_control",
            "mc_pos_control", "logger")
+#: modules made unavailable on purpose, to check that a missing module is reported and skipped
+MISSING = ("l3gd20", "lsm303d", "ms5611", "hmc5883", "gps", "navigator", "land_detector",
+           "mavlink")
 
 
 class Board:
@@ -29,6 +32,7 @@ class Board:
             params.set("SYS_AUTOCONFIG", autoconfig)
         table = dict(FMU_V2_MODULES)
         table.update({n: dummy(n) for n in DUMMIES})
+        table.update({n: f"firmware.not_in_this_build.{n}:Module" for n in MISSING})
         self.system = System(platform, params, modules=table, sd_root=sd_root)
         self.out = []
         self.shell = Shell(self.system, self.out.append)
