@@ -26,6 +26,12 @@ def _cmd_log(args: argparse.Namespace) -> int:
     return log_tools.plot_main(args.file, args.topics, args.out)
 
 
+def _cmd_shell(args: argparse.Namespace) -> int:
+    from hil import shell_client
+
+    return shell_client.main(args.port, args.command, args.timeout)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
@@ -52,6 +58,13 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("topics", nargs="*", help="extra topics to plot")
     q.add_argument("--out", default=None, help="output folder (default: next to the log)")
     p.set_defaults(func=_cmd_log)
+
+    p = sub.add_parser("shell", help="attach to the nsh console of a running emulator")
+    p.add_argument("--port", type=int, default=None,
+                   help="console TCP port (default: the newest running hil)")
+    p.add_argument("-c", dest="command", default=None, help="run one command and exit")
+    p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a reply")
+    p.set_defaults(func=_cmd_shell)
     return parser
 
 

@@ -114,8 +114,14 @@ class Orchestrator:
             if (w.src[0] == WORLD or w.dst[0] == WORLD) and self.world is None:
                 raise ValueError(f"wire {w} needs a world, and none was given")
             self._routes.setdefault(w.src, []).append(w.dst)
-        if self.world is not None and hasattr(self.world, "wired"):
-            self.world.wired = {port for board, port in self._routes if board == WORLD}
+        if self.world is not None:
+            wired = {port for board, port in self._routes if board == WORLD}
+            wired |= {dst[1] for dsts in self._routes.values() for dst in dsts
+                      if dst[0] == WORLD}
+            if hasattr(self.world, "set_wired"):
+                self.world.set_wired(wired)
+            elif hasattr(self.world, "wired"):
+                self.world.wired = wired
 
     def start(self) -> Orchestrator:
         """Start every board (processes start in parallel) and check the wiring's port names."""

@@ -28,6 +28,8 @@ def truth_from_record(record: tuple) -> Truth:
 class WorldPorts:
     """Wraps a :class:`World` with the port interface the orchestrator routes through."""
 
+    ports = ("truth", "battery", *(f"esc{i}" for i in range(1, 9)))
+
     def __init__(self, world: World | None = None, truth_every_steps: int = 1, **kwargs: Any
                  ) -> None:
         self.world = world if world is not None else World(**kwargs)
