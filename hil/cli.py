@@ -32,6 +32,12 @@ def _cmd_shell(args: argparse.Namespace) -> int:
     return shell_client.main(args.port, args.command, args.timeout)
 
 
+def _cmd_params(args: argparse.Namespace) -> int:
+    from hil import params_doc
+
+    return params_doc.main(args.out)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
@@ -65,6 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-c", dest="command", default=None, help="run one command and exit")
     p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a reply")
     p.set_defaults(func=_cmd_shell)
+
+    p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
+    p.add_argument("--out", default=None, help="write to this file instead of stdout")
+    p.set_defaults(func=_cmd_params)
     return parser
 
 

@@ -401,13 +401,21 @@ def import_qgc(params: Params, text: str) -> tuple[int, list[str]]:
     return count, problems
 
 
+def _num(v: int | float | None) -> str:
+    """A value as a person writes it: float32 defaults without their binary tail."""
+    if v is None:
+        return ""
+    return f"{v:.7g}" if isinstance(v, float) else str(v)
+
+
 def markdown_reference(defs: Iterable[ParamDef]) -> str:
     """The parameter reference page, generated from the metadata."""
     by_group: dict[str, list[ParamDef]] = {}
     for d in sorted(defs, key=lambda d: d.name):
         by_group.setdefault(d.group, []).append(d)
     out = ["# Parameter reference", "",
-           "Generated from the parameter declarations (`hil params-doc`); do not edit.", ""]
+           "Generated from the parameter declarations (`hil params --out "
+           "docs/parameter_reference.md`); do not edit.", ""]
     for group in sorted(by_group):
         out += [f"## {group}", "", "| Name | Description | Min > Max | Default | Unit |",
                 "|---|---|---|---|---|"]
@@ -417,7 +425,8 @@ def markdown_reference(defs: Iterable[ParamDef]) -> str:
                 desc += "<br>" + ", ".join(f"{k}: {v}" for k, v in sorted(d.values.items()))
             if d.reboot_required:
                 desc += "<br>Reboot required"
-            rng = f"{'' if d.min is None else d.min} > {'' if d.max is None else d.max}"
-            out.append(f"| `{d.name}` ({d.type}) | {desc} | {rng} | {d.default} | {d.unit} |")
+            rng = f"{_num(d.min)} > {_num(d.max)}"
+            out.append(f"| `{d.name}` ({d.type}) | {desc} | {rng} | {_num(d.default)} | "
+                       f"{d.unit} |")
         out.append("")
     return "\n".join(out)

@@ -1,0 +1,34 @@
+"""Parameters on the FMU: they survive a reboot through the FRAM's host file, and a corrupted
+FRAM image gives the defaults with a clear message."""
+
+from board.fmu_v2 import FmuV2Board
+
+BOOTED = 1_500_000_000
+
+
+def boot(tmp_path, **kw):
+    b = FmuV2Board(seed=1, fram_path=str(tmp_path / "fram.bin"), sd_root=None, **kw)
+    b.kernel.run(BOOTED)
+    return b
+
+
+def test_parameters_survive_a_reboot_through_fram(tmp_path):
+    b = boot(tmp_path)
+    assert b.ctl_shell("param set SDLOG_PROFILE 17")[0] == 0
+    assert b.ctl_shell("param save")[0] == 0
+    b.devices["fram"].close()
+    again = boot(tmp_path)  # a new board on the same FRAM file: a power cycle
+    assert again.ctl_shell("param get SDLOG_PROFILE")[1].strip() == "17"
+    assert any("parameters loaded from slot" in line[3] for line in again.platform.dmesg)
+
+
+def test_corrupted_fram_gives_defaults_and_says_so(tmp_path):
+    image = bytearray(16384)
+    image[0:4] = b"\x00\x10\x00\x00"  # a document length the data cannot back
+    image[4:16] = b"garbage here"
+    (tmp_path / "fram.bin").write_bytes(bytes(image))
+    b = boot(tmp_path)
+    errors = [line[3] for line in b.platform.dmesg if line[1] <= 3 and line[2] == "param"]
+    assert errors and "corrupt" in errors[0] and "defaults loaded" in errors[0]
+    assert b.ctl_shell("param get SDLOG_PROFILE")[1].strip() == "1"  # the default
+    assert b.ctl_shell("ver all")[0] == 0  # and the board runs on
