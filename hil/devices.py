@@ -9,6 +9,12 @@ the owner and concatenates outputs in device order, so routing stays determinist
 
 A device is any object with ``ports`` (names it owns), ``run_until(t_ns)``,
 ``outputs(until_ns) -> list`` and ``input(port, t_ns, payload)``.
+
+A device whose behaviour is a script fixed before the run (``runs_ahead = True``: an RC
+transmitter playing a timeline) is run ``lead_ns`` ahead (the orchestrator sets it to one
+quantum). Its records then reach a board before their stamps and are applied at their exact
+times instead of at the next quantum start. A device that reacts to the boards must not run
+ahead: its outputs would depend on inputs it has not seen.
 """
 
 from __future__ import annotations
@@ -35,6 +41,8 @@ class DeviceHub:
         self.devices: list[Device] = []
         self._owner: dict[str, Device] = {}
         self.wired: set[str] | None = None
+        #: how far ahead devices with ``runs_ahead`` run (the orchestrator sets one quantum)
+        self.lead_ns = 0
         for d in devices:
             self.add(d)
 
@@ -71,13 +79,15 @@ class DeviceHub:
         raise AttributeError(name)
 
     def run_until(self, t_ns: int) -> None:
+        lead = self.lead_ns
         for d in self.devices:
-            d.run_until(t_ns)
+            d.run_until(t_ns + lead if getattr(d, "runs_ahead", False) else t_ns)
 
     def outputs(self, until_ns: int) -> list:
         out: list = []
+        lead = self.lead_ns
         for d in self.devices:
-            out += d.outputs(until_ns)
+            out += d.outputs(until_ns + lead if getattr(d, "runs_ahead", False) else until_ns)
         return out
 
     def input(self, port: str, t_ns: int, payload: Any) -> None:
