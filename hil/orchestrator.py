@@ -119,7 +119,7 @@ class Orchestrator:
             wired |= {dst[1] for dsts in self._routes.values() for dst in dsts
                       if dst[0] == WORLD}
             if hasattr(self.world, "lead_ns"):
-                self.world.lead_ns = quantum_ns
+                self.world.lead_ns = self.quantum_ns
             if hasattr(self.world, "set_wired"):
                 self.world.set_wired(wired)
             elif hasattr(self.world, "wired"):
