@@ -10,6 +10,8 @@ from __future__ import annotations
 import itertools
 
 import pytest
+
+from hil.devices import DeviceHub
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -469,31 +471,16 @@ class RcSinkBoard(Board):
         self.expose_pin_in("ppm_in", pin)
 
 
-class LeadHost:
-    """What WorldPorts does with the proposed ``devices``/``device_lead_ns`` patch."""
-
-    def __init__(self, device, lead_ns: int) -> None:
-        self.device, self.lead_ns = device, lead_ns
-
-    def run_until(self, t_ns: int) -> None:
-        self.device.run_until(t_ns + self.lead_ns)
-
-    def outputs(self, until_ns: int) -> list:
-        return self.device.outputs(until_ns + self.lead_ns)
-
-    def input(self, port, t_ns, payload) -> None:
-        raise ValueError(port)
-
-
 @pytest.mark.parametrize("lead", [True, False])
 def test_through_orchestrator_into_board_ports(lead):
     rig = RcRig(Transmitter())
+    rig.runs_ahead = lead  # the device hub runs a scripted rig one quantum ahead
     rig.tx.set(0, 1, 1234)
     sbus, ppm = rig.add("sbus"), rig.add("ppm")
     quantum = MS
     wiring = [Wire((WORLD, "rc_sbus"), ("io", "sbus_in")), Wire((WORLD, "rc_ppm"), ("io", "ppm_in"))]
     orch = Orchestrator({"io": BoardSpec("tests.hil.test_rc_receivers:RcSinkBoard")}, wiring,
-                        world=LeadHost(rig, quantum if lead else 0), quantum_ns=quantum,
+                        world=DeviceHub(rig), quantum_ns=quantum,
                         mode="local")
     with orch:
         orch.run(300 * MS)
