@@ -28,6 +28,8 @@ FIGURES: list[Figure] = [
            "transfers/s", "14-byte SPI burst reads from a register-file target", 2),
     Figure("uart_bytes_per_s", "bench_uart:bench_uart_bytes_per_s", "bytes/s",
            "bytes through a UART pair at 1.5 Mbaud in 68-byte bursts (IDLE + read)", 2),
+    Figure("uart_mismatch_frames_per_s", "bench_uart_mismatch:bench_uart_mismatch_frames_per_s",
+           "frames/s", "bit-level decoding of a UART heard at the wrong baud (GPS baud scan)", 4),
     Figure("lockstep_overhead_us_per_quantum",
            "bench_lockstep:bench_lockstep_overhead_us_per_quantum", "us/quantum",
            "orchestrator + two board processes with a 1 kHz tick (every quantum exchanged)", 3),

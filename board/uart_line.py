@@ -11,17 +11,19 @@ or a missing inverter shows up as the same wrong bytes and error flags as on the
 Error flags use the bit positions of the STM32 ``USART_SR`` register so that firmware code can
 test them as it would on the chip.
 
-All times are integer nanoseconds at the API; inside the decoder, bit boundaries and sample
-points are exact rationals (:class:`fractions.Fraction`) and are floored to ns only when a
-byte's arrival is reported. The decoder is used only on mismatched links, so its cost does not
-matter for the normal path.
+All times are integer nanoseconds at the API. Inside the decoder, bit boundaries and sample
+points are exact rationals, held as integers in units of ``1/q`` ns where ``q`` is the smallest
+scale that makes every transmitter bit and every half receiver bit a whole number of units
+(usually a single digit); they are floored to ns only when a byte's arrival is reported. Exact
+arithmetic keeps runs deterministic; integers instead of :class:`fractions.Fraction` keep the
+GPS driver's baud scan (seconds of traffic at the wrong baud) cheap.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from fractions import Fraction
+from functools import lru_cache
 
 __all__ = [
     "BREAK",
@@ -159,17 +161,60 @@ def burst_levels(config: UartConfig, data: bytes | LineBreak) -> list[int]:
     return levels
 
 
+_FLIP = bytes([1, 0]) + bytes(254)  # translate table: level 0 <-> 1
+_FALL = b"\x01\x00"  # a mark bit followed by a space bit: a falling edge between them
+
+
+@lru_cache(maxsize=64)
+def _frame_table(data_bits: int, parity: str, stop_bits: int) -> tuple[bytes, ...]:
+    """Frame levels of every byte value as ``bytes``, so a burst is one ``join``."""
+    cfg = UartConfig(9600, data_bits, parity, stop_bits)
+    return tuple(bytes(frame_levels(cfg, v)) for v in range(256))
+
+
+def _burst_bytes(config: UartConfig, data: bytes | LineBreak) -> bytes:
+    """:func:`burst_levels` as ``bytes`` (one level per byte), built from cached frames."""
+    if isinstance(data, LineBreak):
+        return bytes(config.bits_per_frame) + b"\x01" * config.stop_bits
+    table = _frame_table(config.data_bits, config.parity, config.stop_bits)
+    return b"".join(map(table.__getitem__, data))
+
+
+def _scale(rate: int) -> int:
+    """Smallest ``q`` for which ``NS_PER_S * q`` is a multiple of ``rate`` (so ``1/rate`` s is
+    a whole number of ``1/q`` ns)."""
+    return rate // math.gcd(rate, NS_PER_S)
+
+
+@lru_cache(maxsize=256)
+def _sample_offsets(tx_baud: int, rx_baud: int, nsamples: int) -> tuple[int, ...]:
+    """Transmitter bit index, relative to the edge's bit, of each receiver sample point.
+
+    Sample ``j`` lies ``(2j+1)/(2 rx_baud)`` s after an edge on a transmitter bit boundary, so
+    within the same burst it reads bit ``b + floor((2j+1) tx_baud / (2 rx_baud))``: exact, and
+    free of any time arithmetic per sample.
+    """
+    return tuple((2 * j + 1) * tx_baud // (2 * rx_baud) for j in range(nsamples))
+
+
 class _Segment:
-    """One burst as the receiver sees it: levels already corrected for both inverters."""
+    """One burst as the receiver sees it: levels already corrected for both inverters.
 
-    __slots__ = ("baud", "end", "idle", "levels", "t0")
+    ``levels`` holds one byte (0 or 1) per transmitter bit, so edges are found by
+    ``bytes.find``. ``t0q``/``endq``/``unit`` are the start, end and bit time in the decoder's
+    current ``1/q`` ns units (rescaled when ``q`` grows).
+    """
 
-    def __init__(self, t0: int, baud: int, levels: list[int], idle: int) -> None:
+    __slots__ = ("baud", "endq", "idle", "levels", "t0", "t0q", "unit")
+
+    def __init__(self, t0: int, baud: int, levels: bytes, idle: int, q: int) -> None:
         self.t0 = t0
         self.baud = baud
         self.levels = levels
         self.idle = idle
-        self.end = t0 + Fraction(len(levels) * NS_PER_S, baud)
+        self.unit = NS_PER_S * q // baud
+        self.t0q = t0 * q
+        self.endq = self.t0q + len(levels) * self.unit
 
 
 class LineDecoder:
@@ -194,13 +239,24 @@ class LineDecoder:
     later, when the next burst is fed or when :meth:`decode` is called with ``final=True`` (the
     owner schedules that once the waveform's end is in the past), so back-to-back writes decode
     as one continuous line.
+
+    Implementation: the results are exactly those of the original Fraction-based decoder (kept
+    as the oracle in ``tests/board/_line_decoder_reference.py``), including its handling of
+    bursts that overlap by a fraction of a ns (``Uart.write`` floors burst ends) and of pruning.
+    Times are integers in ``1/q`` ns. A frame whose samples all fall inside the burst holding its
+    start edge (nearly all of them) is read by precomputed bit offsets; anything else goes
+    through the general per-sample walk over the bursts.
     """
 
-    __slots__ = ("_before", "_pos", "_segs", "pending")
+    __slots__ = ("_before", "_lo", "_pos", "_q", "_segs", "pending")
 
     def __init__(self) -> None:
         self._segs: list[_Segment] = []
-        self._pos: Fraction = Fraction(0)
+        #: Where the receiver resumes looking for a falling edge, in 1/_q ns.
+        self._pos = 0
+        self._q = 1
+        #: Every segment before index _lo ends before _pos (skipped by every query).
+        self._lo = 0
         self._before = 1
         #: True when decoding waits for more of the line (call decode(final=True) eventually).
         self.pending = False
@@ -208,59 +264,86 @@ class LineDecoder:
     def feed(self, t_start_ns: int, tx_config: UartConfig, data: bytes | LineBreak,
              rx_config: UartConfig) -> None:
         """Add a burst sent with ``tx_config`` as seen by a receiver using ``rx_config``."""
-        flip = int(tx_config.invert != rx_config.invert)
-        levels = burst_levels(tx_config, data)
+        flip = tx_config.invert != rx_config.invert
+        levels = _burst_bytes(tx_config, data)
         if flip:
-            levels = [lv ^ 1 for lv in levels]
-        idle = 1 ^ flip
+            levels = levels.translate(_FLIP)
+        idle = 0 if flip else 1
         if not self._segs:
             self._before = idle
-        self._segs.append(_Segment(t_start_ns, tx_config.baud, levels, idle))
+        self._rescale(_scale(tx_config.baud))
+        self._segs.append(_Segment(t_start_ns, tx_config.baud, levels, idle, self._q))
 
-    # -- waveform queries -----------------------------------------------------------------------
-
-    def _level(self, t: Fraction, final: bool) -> int | None:
-        prev = self._before
+    def _rescale(self, need: int) -> None:
+        """Make ``_q`` a multiple of ``need``, scaling every stored time (exact: integer factor)."""
+        q = self._q
+        if q % need == 0:
+            return
+        f = math.lcm(q, need) // q
+        self._q = q * f
+        self._pos *= f
         for s in self._segs:
-            if t < s.t0:
+            s.t0q *= f
+            s.endq *= f
+            s.unit *= f
+
+    # -- waveform queries (general path; times in 1/_q ns) ---------------------------------------
+
+    def _level(self, t: int, final: bool) -> int | None:
+        """Line level at ``t`` (>= _pos); None if past the known waveform and not final."""
+        segs = self._segs
+        lo = self._lo
+        prev = segs[lo - 1].idle if lo else self._before
+        for i in range(lo, len(segs)):
+            s = segs[i]
+            if t < s.t0q:
                 return prev
-            if t < s.end:
-                return s.levels[(t - s.t0) * s.baud // NS_PER_S]
+            if t < s.endq:
+                return s.levels[(t - s.t0q) // s.unit]
             prev = s.idle
         return prev if final else None
 
-    def _next_edge(self, pos: Fraction, final: bool) -> tuple[Fraction | None, bool]:
-        """First falling edge at or after ``pos``; (None, True) if it may lie past the known
-        waveform."""
+    def _next_edge(self, pos: int, final: bool) -> tuple[int | None, bool, int, int]:
+        """First falling edge at or after ``pos`` as ``(time, False, segment, bit)``;
+        ``(None, True, -1, 0)`` if it may lie past the known waveform, ``(None, False, -1, 0)``
+        if there is none. ``bit`` is the segment's length for an edge at its end."""
         segs = self._segs
-        for i, s in enumerate(segs):
-            if s.end < pos:
+        nseg = len(segs)
+        i = self._lo
+        while i < nseg:
+            s = segs[i]
+            endq = s.endq
+            if endq < pos:
+                i += 1
                 continue
-            n = len(s.levels)
-            if i == 0:
-                prev = self._before
-            else:
-                p = segs[i - 1]
-                prev = p.levels[-1] if p.end == s.t0 else p.idle
-            b = 0 if pos <= s.t0 else -((-(pos - s.t0) * s.baud) // NS_PER_S)
             levels = s.levels
-            while b < n:
-                before = prev if b == 0 else levels[b - 1]
-                if before == 1 and levels[b] == 0:
-                    return s.t0 + Fraction(b * NS_PER_S, s.baud), False
-                b += 1
-            # Boundary at the end of the segment: last bit -> whatever follows.
-            if i + 1 < len(segs):
-                if segs[i + 1].t0 == s.end:
-                    continue  # handled as boundary 0 of the next segment
-                after = s.idle
-            elif not final:
-                return None, levels[-1] == 1
+            t0q = s.t0q
+            if pos <= t0q:
+                if i == 0:
+                    prev = self._before
+                else:
+                    p = segs[i - 1]
+                    prev = p.levels[-1] if p.endq == t0q else p.idle
+                if prev == 1 and levels[0] == 0:
+                    return t0q, False, i, 0
+                b = 1
             else:
-                after = s.idle
-            if levels[-1] == 1 and after == 0:
-                return s.end, False
-        return None, False
+                b = -((t0q - pos) // s.unit)  # ceil: first boundary at or after pos
+            n = len(levels)
+            if b < n:
+                j = levels.find(_FALL, b - 1)
+                if j >= 0:
+                    return t0q + (j + 1) * s.unit, False, i, j + 1
+            # Boundary at the end of the segment: last bit -> whatever follows.
+            i += 1
+            if i < nseg:
+                if segs[i].t0q == endq:
+                    continue  # handled as boundary 0 of the next segment
+            elif not final:
+                return None, levels[-1] == 1, -1, 0
+            if levels[-1] == 1 and s.idle == 0:
+                return endq, False, i - 1, n
+        return None, False, -1, 0
 
     # -- decoding -------------------------------------------------------------------------------
 
@@ -275,59 +358,91 @@ class LineDecoder:
         """
         d = rx_config.data_bits
         p = rx_config.parity_bits
-        half = Fraction(NS_PER_S, 2 * rx_config.baud)
-        frame_len = Fraction((1 + d + p + rx_config.stop_bits) * NS_PER_S, rx_config.baud)
+        rx_baud = rx_config.baud
+        self._rescale(_scale(2 * rx_baud))
+        q = self._q
+        half = NS_PER_S * q // (2 * rx_baud)
+        frame_len = (1 + d + p + rx_config.stop_bits) * 2 * half
         nsamples = 2 + d + p  # start, data, parity, first stop bit
+        span = (2 * nsamples - 1) * half  # edge to the first stop bit sample
+        want_odd = int(rx_config.parity == "O")
+        data_idx = range(1, 1 + d)
+        segs = self._segs
         frames: list[tuple[int, int, int]] = []
-        wake: Fraction | None = None
-        last_end = self._segs[-1].end if self._segs else Fraction(0)
+        wake: int | None = None
+        last_end = segs[-1].endq if segs else 0
+        pos = self._pos
+        lo = self._lo
+        nseg = len(segs)
         while True:
-            edge, unknown = self._next_edge(self._pos, final)
+            while lo < nseg and segs[lo].endq < pos:
+                lo += 1
+            self._lo = lo
+            edge, unknown, k, b = self._next_edge(pos, final)
             if edge is None:
                 if unknown:
                     wake = last_end
                 break
-            samples = []
-            for j in range(nsamples):
-                lv = self._level(edge + (2 * j + 1) * half, final)
-                if lv is None:
+            s = segs[k]
+            levels = s.levels
+            offs = _sample_offsets(s.baud, rx_baud, nsamples)
+            if b + offs[-1] < len(levels) and (k == lo or all(
+                    segs[i].endq <= edge for i in range(lo, k))):
+                # Fast path: every sample lies in this segment, which nothing before covers.
+                if levels[b + offs[0]]:
+                    pos = edge + half  # false start
+                    continue
+                value = 0
+                for bit in data_idx:
+                    value |= levels[b + offs[bit]] << (bit - 1)
+                par = levels[b + offs[1 + d]]
+                stop = levels[b + offs[-1]]
+            else:
+                samples = []
+                for j in range(nsamples):
+                    lv = self._level(edge + (2 * j + 1) * half, final)
+                    if lv is None:
+                        break
+                    samples.append(lv)
+                if len(samples) < nsamples:
+                    wake = max(last_end, edge + span)
                     break
-                samples.append(lv)
-            if len(samples) < nsamples:
-                wake = max(last_end, edge + (2 * nsamples - 1) * half)
-                break
-            if samples[0] == 1:  # false start: line back at mark mid start bit
-                self._pos = edge + half
-                continue
-            value = 0
-            for k in range(d):
-                value |= samples[1 + k] << k
+                if samples[0] == 1:  # false start: line back at mark mid start bit
+                    pos = edge + half
+                    continue
+                value = 0
+                for bit in data_idx:
+                    value |= samples[bit] << (bit - 1)
+                par = samples[1 + d]
+                stop = samples[-1]
             flags = 0
-            if p and samples[1 + d] != _parity_bit(value, rx_config.parity):
+            if p and par != (value.bit_count() & 1) ^ want_odd:
                 flags |= PE
-            if samples[1 + d + p] == 0:
+            if stop == 0:
                 flags |= FE
-                if value == 0 and (not p or samples[1 + d] == 0):
+                if value == 0 and (not p or par == 0):
                     flags |= LBD
-            frames.append((math.floor(edge + frame_len), value, flags))
-            self._pos = edge + (2 * nsamples - 1) * half
+            frames.append(((edge + frame_len) // q, value, flags))
+            pos = edge + span
+        self._pos = pos  # (_lo is already up to date: pos has not moved since it was set)
         self.pending = wake is not None
         mark_since = None
-        if not self.pending and self._segs:
-            last = self._segs[-1]
+        if not self.pending and segs:
+            last = segs[-1]
             if last.idle == 1:
-                k = len(last.levels)
-                while k and last.levels[k - 1] == 1:
-                    k -= 1
-                mark_since = math.ceil(last.t0 + Fraction(k * NS_PER_S, last.baud))
+                k = len(last.levels.rstrip(b"\x01"))
+                mark_since = last.t0 - ((-k * NS_PER_S) // last.baud)
             if final:
                 self._before = last.idle
-                self._segs.clear()
+                segs.clear()
+                self._lo = 0
         self._prune()
-        return frames, (math.ceil(wake) if wake is not None else None), mark_since
+        return frames, (-((-wake) // q) if wake is not None else None), mark_since
 
     def _prune(self) -> None:
         segs = self._segs
-        while len(segs) > 1 and segs[0].end < self._pos and segs[1].t0 >= segs[0].end:
+        pos = self._pos
+        while len(segs) > 1 and segs[0].endq < pos and segs[1].t0q >= segs[0].endq:
             self._before = segs[0].idle
             segs.pop(0)
+            self._lo -= 1
