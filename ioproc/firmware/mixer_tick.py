@@ -1,0 +1,180 @@
+"""``mixer_tick``: FMU-loss check, output source, arming decision, mixing, PWM (E14, §3.3-§3.5).
+
+Why this shape: the IO's one job is to decide, every main-loop pass, *who* drives the servos
+(the FMU's controls, the pilot's sticks through the RC override, fixed failsafe values, or raw
+PWM from the FMU) and *whether* the PWM timers run at all. The decision table and the arming
+condition are E14's, restated from io-and-rc.md §3.4; the ramp is :class:`PwmLimit`; the
+pulses reach the pins only through :class:`PwmServo`'s timer registers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from enum import Enum
+
+from ioproc.firmware.bits import AL, AR, FE, SF
+from ioproc.firmware.pwm_out import PwmServo
+from ioproc.pages import RegisterFile
+from ioproc.protocol import (
+    CONTROL_CHANNELS,
+    CONTROL_GROUPS,
+    SERVO_COUNT,
+    PageNo,
+    RcInput,
+    Setup,
+    float_to_reg,
+    reg_to_float,
+)
+from ioproc.pwm_limit import PwmLimit
+
+__all__ = ["FMU_INPUT_DROP_LIMIT_US", "MixSource", "MixerTick"]
+
+#: FMU_INPUT_DROP_LIMIT_US: CONTROLS/DIRECT_PWM silence that counts as FMU loss (§3.3).
+FMU_INPUT_DROP_LIMIT_US = 500_000
+
+F = SF
+
+
+class MixSource(Enum):
+    """Where the outputs come from this pass (E14 ``source``)."""
+
+    FAILSAFE = "failsafe"
+    NONE = "none"  # DIRECT_PWM already in SERVOS
+    FMU = "fmu"
+    OVERRIDE = "override"
+    OVERRIDE_FMU_OK = "override_fmu_ok"
+
+
+class MixerTick:
+    """State the E14 mixer keeps between passes, and the pass itself."""
+
+    def __init__(self, regs: RegisterFile, pwm: PwmServo, limit: PwmLimit | None = None,
+                 sbus_out: Callable[[list[int], int, bool], None] | None = None) -> None:
+        self.regs = regs
+        self.pwm = pwm
+        self.limit = limit or PwmLimit(regs.era)
+        self.source = MixSource.FAILSAFE
+        self.should_arm = False
+        self.always_pwm = False
+        #: mixer_servos_armed: the timers are running.
+        self.servos_armed = False
+        self._sbus_out = sbus_out
+        self._fs_cache: dict[int, int] = {}
+        self._controls = regs.page(PageNo.CONTROLS)
+        self._rc = regs.page(PageNo.RC_INPUT)
+        self._get_control = {
+            MixSource.FMU: self._control_fmu,
+            MixSource.OVERRIDE: self._control_rc,
+            MixSource.OVERRIDE_FMU_OK: self._control_rc_or_fmu,
+        }
+
+    # -- mixer input callbacks (E14 mixer_callback) ------------------------------------------
+    def _control_fmu(self, group: int, index: int) -> float | None:
+        if group >= CONTROL_GROUPS or index >= CONTROL_CHANNELS:
+            return None
+        return reg_to_float(self._controls[group * CONTROL_CHANNELS + index])
+
+    def _control_rc(self, group: int, index: int) -> float | None:
+        bit = group * CONTROL_CHANNELS + index
+        if group >= CONTROL_GROUPS or bit >= 16 or not self._rc[RcInput.VALID] & (1 << bit):
+            return None
+        return reg_to_float(self._rc[RcInput.BASE + index])
+
+    def _control_rc_or_fmu(self, group: int, index: int) -> float | None:
+        value = self._control_rc(group, index)
+        return self._control_fmu(group, index) if value is None else value
+
+    # -- the pass ----------------------------------------------------------------------------
+    def check_fmu(self, now_us: int) -> None:
+        """FMU_OK / FMU_LOST from the age of the last CONTROLS or DIRECT_PWM write."""
+        regs = self.regs
+        last = regs.fmu_data_received_us
+        if last is None or now_us - last > FMU_INPUT_DROP_LIMIT_US:
+            regs.status_flags &= ~F.FMU_OK
+            regs.alarms |= AL.FMU_LOST
+        else:
+            regs.status_flags |= F.FMU_OK | F.FMU_INITIALIZED
+
+    def _select_source(self, flags: int, arming: int) -> MixSource:
+        override_ok = (flags & F.OVERRIDE and flags & F.RC_OK and flags & F.MIXER_OK
+                       and not arming & AR.RC_HANDLING_DISABLED)
+        if flags & F.RAW_PWM and flags & F.FMU_OK:
+            return MixSource.NONE
+        if not flags & F.OVERRIDE and flags & F.FMU_OK and flags & F.MIXER_OK:
+            return MixSource.FMU
+        if override_ok and not flags & F.FMU_OK and not arming & AR.TERMINATION_FAILSAFE:
+            return MixSource.OVERRIDE
+        if override_ok and flags & F.FMU_OK:
+            return MixSource.OVERRIDE_FMU_OK
+        return MixSource.FAILSAFE
+
+    def tick(self, now_us: int) -> None:
+        regs = self.regs
+        self.check_fmu(now_us)
+        flags, arming = regs.status_flags, regs.arming
+        source = self._select_source(flags, arming)
+        should_arm = bool(
+            flags & F.INIT_OK and flags & F.SAFETY_OFF
+            and ((arming & AR.FMU_ARMED and flags & F.MIXER_OK) or flags & F.RAW_PWM
+                 or (arming & AR.FAILSAFE_CUSTOM and not flags & F.FMU_OK)))
+        always_pwm = bool(arming & AR.ALWAYS_PWM_ENABLE and flags & F.INIT_OK
+                          and flags & F.FMU_OK)
+        if (arming & AR.TERMINATION_FAILSAFE and source is MixSource.FAILSAFE and should_arm
+                and flags & F.FMU_INITIALIZED):
+            regs.arming = arming = arming | AR.FORCE_FAILSAFE  # latched (sticky rule)
+        if arming & AR.FORCE_FAILSAFE:
+            source = MixSource.FAILSAFE
+        if source is MixSource.FAILSAFE:
+            regs.status_flags |= F.FAILSAFE
+        else:
+            regs.status_flags &= ~F.FAILSAFE
+        self.source, self.should_arm, self.always_pwm = source, should_arm, always_pwm
+
+        servos = regs.page(PageNo.SERVOS)
+        actuators = regs.page(PageNo.ACTUATORS)
+        if source is MixSource.FAILSAFE:
+            failsafe = regs.page(PageNo.FAILSAFE_PWM)
+            cache = self._fs_cache
+            for i in range(SERVO_COUNT):
+                us = servos[i] = failsafe[i]
+                reg = cache.get(us)
+                if reg is None:
+                    reg = cache[us] = float_to_reg((us - 1500) / 600.0)
+                actuators[i] = reg
+        elif source is not MixSource.NONE and regs.status_flags & F.MIXER_OK:
+            outputs = regs.mixer.group.mix(self._get_control[source], SERVO_COUNT)
+            mixed = len(outputs)
+            pwm = self.limit.calc(should_arm, now_us, regs.page(PageNo.DISARMED_PWM),
+                                  regs.page(PageNo.CONTROL_MIN_PWM),
+                                  regs.page(PageNo.CONTROL_MAX_PWM), outputs)
+            for i in range(SERVO_COUNT):
+                servos[i] = pwm[i] if i < mixed else 0
+                if i < mixed:
+                    actuators[i] = float_to_reg(outputs[i])
+
+        need = (should_arm or always_pwm) and not regs.arming & AR.LOCKDOWN
+        pwm_out = self.pwm
+        if need and not self.servos_armed:
+            pwm_out.arm(True)
+            self.servos_armed = True
+            regs.status_flags |= F.OUTPUTS_ARMED
+        elif not need and self.servos_armed:
+            pwm_out.arm(False)
+            self.servos_armed = False
+            regs.status_flags &= ~F.OUTPUTS_ARMED
+        if self.servos_armed and should_arm:
+            for i in range(SERVO_COUNT):
+                pwm_out.set(i, servos[i])
+            self._sbus(servos, now_us)
+        elif self.servos_armed and always_pwm:
+            disarmed = regs.page(PageNo.DISARMED_PWM)
+            for i in range(SERVO_COUNT):
+                pwm_out.set(i, disarmed[i])
+            self._sbus(servos, now_us)
+
+    def _sbus(self, servos: list[int], now_us: int) -> None:
+        if self._sbus_out is None:
+            return
+        features = self.regs.page(PageNo.SETUP)[Setup.FEATURES]
+        if features & (FE.SBUS1_OUT | FE.SBUS2_OUT):
+            self._sbus_out(servos, now_us, bool(features & FE.SBUS2_OUT))
