@@ -28,7 +28,7 @@ from board.endpoint import OP_ADVANCE, OP_CALL, OP_STOP, R_ERROR, R_OK, R_RESULT
 from board.endpoint import Endpoint, build_board
 from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied
 
-__all__ = ["ProcessHandle", "board_process_main"]
+__all__ = ["ProcessHandle", "board_process_main", "resolve_kwargs"]
 
 _dumps = marshal.dumps
 _loads = marshal.loads
@@ -48,6 +48,20 @@ def _die_with_parent() -> None:
         pass
 
 
+def resolve_kwargs(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """Turn plain-data stand-ins into host objects a board may be given.
+
+    ``host_clock="perf_counter"`` becomes :func:`time.perf_counter`: only hil/ hands the
+    wall clock to a board (for ``top``'s host-time column), never the board itself.
+    """
+    out = dict(kwargs)
+    if out.get("host_clock") == "perf_counter":
+        import time
+
+        out["host_clock"] = time.perf_counter
+    return out
+
+
 def board_process_main(spec: ChannelSpec, name: str, factory: str,
                        kwargs: dict[str, Any]) -> None:
     """Body of a board process: build the board, say hello, then serve requests."""
@@ -56,7 +70,7 @@ def board_process_main(spec: ChannelSpec, name: str, factory: str,
     ch = spec.attach()
     try:
         try:
-            endpoint = Endpoint(build_board(factory, kwargs))
+            endpoint = Endpoint(build_board(factory, resolve_kwargs(kwargs)))
         except Exception:
             ch.send(_dumps((R_ERROR, f"building board {name} with {factory} failed:\n"
                                      f"{traceback.format_exc()}")))

@@ -138,8 +138,11 @@ class Orchestrator:
                     self.handles[name] = ProcessHandle(name, spec.factory, spec.kwargs,
                                                        self.start_method)
             else:
+                from hil.boardproc import resolve_kwargs
+
                 for name, spec in self.specs.items():
-                    self.handles[name] = LocalHandle(name, spec.factory, spec.kwargs)
+                    self.handles[name] = LocalHandle(name, spec.factory,
+                                                     resolve_kwargs(spec.kwargs))
             for w in self.wiring:
                 for (board, port), want in ((w.src, ("out", "inout")), (w.dst, ("in", "inout"))):
                     if board == WORLD:

@@ -1,0 +1,92 @@
+"""The emulated Pixhawk 1 as one system: FMU and IO boards, the world, and what plugs in.
+
+:func:`build_system` returns an :class:`~hil.orchestrator.Orchestrator` (not started) wired as
+``board/wiring.py`` says, with the host devices behind ``"world"``:
+
+* the JSBSim world (truth to the FMU, ESCs from the IO's PWM, battery to the power module),
+* an RC transmitter with an S.BUS receiver on the IO (the rig's other receiver kinds can be
+  added), scripted in virtual time,
+* the safety switch,
+* optionally the FMU console bridged to a host pty and TCP port (``hil shell``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from board.wiring import PIXHAWK1, WORLD, Wire, uart_link
+from hil.devices import DeviceHub
+from hil.orchestrator import BoardSpec, Orchestrator
+from hil.rc import RcRig, Transmitter
+from hil.safety_switch import SafetySwitch
+from hil.worldlink import WorldPorts
+
+__all__ = ["SystemConfig", "build_system", "DEFAULT_AIRFRAME"]
+
+#: DJI F450 (the world's JSBSim model)
+DEFAULT_AIRFRAME = 4011
+
+
+@dataclass
+class SystemConfig:
+    seed: int = 1
+    out_dir: str = "out"              # FRAM image and SD card live here
+    airframe: int = DEFAULT_AIRFRAME
+    quantum_ns: int = 1_000_000
+    mode: str = "process"             # or "local" (one process, for debugging and tests)
+    speed: float | None = None        # None: as fast as possible
+    params: dict[str, int | float] = field(default_factory=dict)
+    console: bool = False             # bridge the FMU console to a pty and TCP port
+    rc: str | None = "sbus"           # receiver on the IO: sbus, dsm or ppm (None: no RC)
+    trace_path: str | None = None
+    fresh_fram: bool = True           # start from erased FRAM (reproducible runs)
+    host_clock: bool = False          # let `top` show host time (not deterministic)
+
+
+def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
+    """The orchestrator and the host devices by name (world, rc, safety, console)."""
+    os.makedirs(cfg.out_dir, exist_ok=True)
+    sd_root = os.path.join(cfg.out_dir, "sd")
+    os.makedirs(sd_root, exist_ok=True)
+    fram = os.path.join(cfg.out_dir, "fram.bin")
+    if cfg.fresh_fram and os.path.exists(fram):
+        os.remove(fram)
+        if os.path.exists(fram + ".sr"):
+            os.remove(fram + ".sr")
+    params = {"SYS_AUTOSTART": cfg.airframe, **cfg.params}
+    fmu_kwargs: dict[str, Any] = {"name": "fmu", "seed": cfg.seed, "fram_path": fram,
+                                  "sd_root": sd_root, "params": params}
+    if cfg.host_clock:
+        fmu_kwargs["host_clock"] = "perf_counter"
+    boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
+              "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
+    world = WorldPorts(seed=cfg.seed)
+    devices: dict[str, Any] = {"world": world}
+    hub = DeviceHub(world)
+    rc_port = {"sbus": "rc_sbus", "dsm": "rc_dsm", "ppm": "rc_ppm"}
+    wiring: list[Wire] = [w for w in PIXHAWK1
+                          if not (w.src[0] == WORLD and w.src[1].startswith("rc_"))]
+    if cfg.rc is not None:
+        if cfg.rc not in rc_port:
+            raise ValueError(f"RC receiver must be one of {sorted(rc_port)}, got {cfg.rc!r}")
+        rig = RcRig(Transmitter())
+        rig.add(cfg.rc)
+        hub.add(rig)
+        devices["rc"] = rig
+        port = rc_port[cfg.rc]
+        wiring.append(next(w for w in PIXHAWK1 if w.src == (WORLD, port)))
+    safety = SafetySwitch()
+    hub.add(safety)
+    devices["safety"] = safety
+    if cfg.console:
+        from hil.console import SerialBridge
+
+        bridge = SerialBridge("console")
+        hub.add(bridge)
+        devices["console"] = bridge
+        wiring += uart_link(("fmu", "console"), (WORLD, "console"))
+    orch = Orchestrator(boards, wiring, world=hub, quantum_ns=cfg.quantum_ns, mode=cfg.mode,
+                        speed=cfg.speed, trace_path=cfg.trace_path)
+    return orch, devices
