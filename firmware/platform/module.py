@@ -273,6 +273,7 @@ FMU_V2_MODULES: dict[str, str] = {
     "logger": "firmware.modules.logger:LoggerModule",
     "mavlink": "firmware.modules.mavlink:MavlinkModule",
     "ekf2": "firmware.modules.ekf2:Ekf2Module",
+    "mc_rate_control": "firmware.modules.mc_rate_control:McRateControlModule",
     "mc_att_control": "firmware.modules.mc_att_control:McAttControlModule",
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
     "navigator": "firmware.modules.navigator:NavigatorModule",

@@ -1,0 +1,295 @@
+"""Multicopter attitude controller: quaternion error -> body rate setpoint.
+
+Control law (reduced attitude first, as PX4 does it; written here from the published idea):
+
+1. The *reduced* desired attitude turns the current body z axis onto the desired one by the
+   shortest rotation, without touching the heading. This is the part a multicopter can achieve
+   quickly (roll/pitch torque is large, yaw torque from rotor drag is ~8x smaller on the F450).
+2. The remaining rotation from the reduced to the full desired attitude is a pure rotation about
+   the desired z axis (the heading error). Only the fraction ``MC_YAW_WEIGHT`` of that angle is
+   added back, so a large heading error never steals roll/pitch authority.
+3. The error quaternion ``qe = q^-1 * q_d`` gives the rate setpoint ``2 sign(qe_w) qe_xyz``
+   scaled by ``MC_ROLL_P``, ``MC_PITCH_P`` and ``MC_YAW_P / MC_YAW_WEIGHT`` (the division keeps
+   the small-error yaw gain equal to ``MC_YAW_P``), plus the yaw rate feed-forward, limited per
+   axis by ``MC_*RATE_MAX``.
+
+Setpoint source: ``vehicle_attitude_setpoint`` (the position controller), or in stabilized mode
+(manual, attitude control without climb rate control) the sticks: tilt up to
+``MPC_MAN_TILT_MAX``, yaw rate up to ``MPC_MAN_Y_MAX``, throttle through ``MPC_THR_CURVE``.
+Runs on ``vehicle_attitude`` updates, at most every ``MC_ATT_INTERVAL`` (250 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from firmware.modules.mc_att_control.quat import (
+    Quat,
+    qconj,
+    qfrom_axis_angle,
+    qfrom_euler,
+    qmul,
+    qyaw,
+)
+from firmware.platform.module import WorkItemModule
+from firmware.platform.params import ParamDef
+
+if TYPE_CHECKING:
+    from firmware.system import System
+
+__all__ = ["PARAMS", "McAttControlModule", "attitude_error_rates"]
+
+_G = "Multicopter Attitude Control"
+_GM = "Multicopter Position Control"
+_D2R = math.pi / 180.0
+
+
+def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = "",
+       group: str = _G, decimals: int = 2) -> ParamDef:
+    return ParamDef(name, "FLOAT", default, min=lo, max=hi, unit=unit, group=group, short=short,
+                    decimals=decimals)
+
+
+PARAMS: tuple[ParamDef, ...] = (
+    _p("MC_ROLL_P", 6.5, 0.0, 12.0, "Roll P gain", "1/s"),
+    _p("MC_PITCH_P", 6.5, 0.0, 12.0, "Pitch P gain", "1/s"),
+    _p("MC_YAW_P", 2.8, 0.0, 5.0, "Yaw P gain", "1/s"),
+    _p("MC_YAW_WEIGHT", 0.4, 0.0, 1.0, "Yaw weight in the combined attitude error"),
+    _p("MC_ROLLRATE_MAX", 220.0, 0.0, 1800.0, "Max roll rate", "deg/s", decimals=1),
+    _p("MC_PITCHRATE_MAX", 220.0, 0.0, 1800.0, "Max pitch rate", "deg/s", decimals=1),
+    _p("MC_YAWRATE_MAX", 200.0, 0.0, 1800.0, "Max yaw rate", "deg/s", decimals=1),
+    _p("MPC_MAN_TILT_MAX", 35.0, 0.0, 90.0, "Max tilt in manual and altitude modes", "deg",
+       _GM, 1),
+    _p("MPC_MAN_Y_MAX", 150.0, 0.0, 400.0, "Max manual yaw rate", "deg/s", _GM, 1),
+    _p("MPC_MANTHR_MIN", 0.08, 0.0, 1.0, "Minimum manual thrust", "", _GM),
+    ParamDef("MPC_THR_CURVE", "INT32", 0, min=0, max=1, group=_GM,
+             short="Thrust curve in manual mode",
+             values={0: "Rescale to hover thrust (mid stick = hover)", 1: "No rescale"}),
+)
+
+
+def attitude_error_rates(q: Quat, qd: Quat, yaw_w: float) -> tuple[float, float, float]:
+    """The body rotation vector (rad) from q toward qd, with only ``yaw_w`` of the heading error.
+
+    Pure function of the two attitudes so it can be tested on its own.
+    """
+    w, x, y, z = q
+    # body z axes in NED (third columns)
+    ezx, ezy, ezz = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), w * w - x * x - y * y + z * z
+    dw, dx, dy, dz = qd
+    dzx, dzy, dzz = (2.0 * (dx * dz + dw * dy), 2.0 * (dy * dz - dw * dx),
+                     dw * dw - dx * dx - dy * dy + dz * dz)
+    dot = ezx * dzx + ezy * dzy + ezz * dzz
+    if dot > -0.999:
+        # shortest rotation ez -> ezd (world frame): q = normalize(1 + dot, ez x ezd)
+        cx = ezy * dzz - ezz * dzy
+        cy = ezz * dzx - ezx * dzz
+        cz = ezx * dzy - ezy * dzx
+        rw = 1.0 + dot
+        n = math.sqrt(rw * rw + cx * cx + cy * cy + cz * cz)
+        qr = (rw / n, cx / n, cy / n, cz / n)
+        qd_red = qmul(qr, q)
+        # heading part: qd = qd_red * q_mix, q_mix a rotation about z
+        mw, _mx, _my, mz = qmul(qconj(qd_red), qd)
+        if mw < 0.0:
+            mw, mz = -mw, -mz
+        mw = -1.0 if mw < -1.0 else (min(mw, 1.0))
+        mz = -1.0 if mz < -1.0 else (min(mz, 1.0))
+        ang_w = yaw_w * math.acos(mw)
+        ang_z = yaw_w * math.asin(mz)
+        qd_final = qmul(qd_red, (math.cos(ang_w), 0.0, 0.0, math.sin(ang_z)))
+    else:  # upside down relative to the setpoint: no reduced attitude exists, go directly
+        qd_final = qd
+    ew, ex, ey, ez = qmul(qconj(q), qd_final)
+    s = 2.0 if ew >= 0.0 else -2.0
+    return s * ex, s * ey, s * ez
+
+
+class McAttControlModule(WorkItemModule):
+    """``mc_att_control``: vehicle_attitude (+ setpoint or sticks) -> vehicle_rates_setpoint."""
+
+    NAME = "mc_att_control"
+    DESCRIPTION = "multicopter attitude controller"
+    WQ = "wq:rate_ctrl"
+    #: STM32F427: quaternion products and trig, ~100 us per run
+    CPU_COST_NS = 100_000
+    #: at most 250 Hz, however fast the estimator publishes
+    INTERVAL_LIMIT_US = 4_000
+    PARAMS = PARAMS
+
+    def __init__(self, system: System, args: Sequence[str] = ()) -> None:
+        super().__init__(system, args)
+        self.qd: Quat = (1.0, 0.0, 0.0, 0.0)
+        self.thrust_body = [0.0, 0.0, 0.0]
+        self.yawspeed_ff = 0.0
+        self.reset_integral = False
+        self.stabilized = False
+        self.armed = False
+        self.landed = True
+        self.man_yaw_sp = 0.0
+        self.last_att_us = 0
+        self.have_sp = False
+
+    def _start(self) -> None:
+        orb = self.platform.orb
+        self.pub_rates = self.advertise("vehicle_rates_setpoint")
+        self.rates_msg = orb.new("vehicle_rates_setpoint")
+        self.pub_att_sp = self.advertise("vehicle_attitude_setpoint")
+        self.att_sp_msg = orb.new("vehicle_attitude_setpoint")
+        self.sub_att = self.subscribe_callback(self.work_item, "vehicle_attitude",
+                                               interval_us=self.INTERVAL_LIMIT_US)
+        self.sub_att_sp = self.subscribe("vehicle_attitude_setpoint")
+        self.sub_mode = self.subscribe("vehicle_control_mode")
+        self.sub_manual = self.subscribe("manual_control_setpoint")
+        self.sub_land = self.subscribe("vehicle_land_detected")
+        self.sub_armed = self.subscribe("actuator_armed")
+        self.sub_hover = self.subscribe("hover_thrust_estimate")
+        self.sub_param = self.subscribe("parameter_update")
+        self.manual = orb.new("manual_control_setpoint")
+        self.hover_thrust = float(self.system.params.get("MPC_THR_HOVER", 0.5)
+                                  if self.system.params is not None else 0.5)
+        self._load_params()
+
+    def _load_params(self) -> None:
+        p = self.param
+        self.yaw_w = min(max(float(p("MC_YAW_WEIGHT")), 0.0), 1.0)
+        yaw_gain = p("MC_YAW_P") / self.yaw_w if self.yaw_w > 0.01 else 0.0
+        self.gains = (float(p("MC_ROLL_P")), float(p("MC_PITCH_P")), yaw_gain)
+        self.rate_max = (p("MC_ROLLRATE_MAX") * _D2R, p("MC_PITCHRATE_MAX") * _D2R,
+                         p("MC_YAWRATE_MAX") * _D2R)
+        self.man_tilt_max = p("MPC_MAN_TILT_MAX") * _D2R
+        self.man_yaw_max = p("MPC_MAN_Y_MAX") * _D2R
+        self.manthr_min = float(p("MPC_MANTHR_MIN"))
+        self.thr_curve = int(p("MPC_THR_CURVE"))
+        params = self.system.params
+        self.thr_max = float(params.get("MPC_THR_MAX", 1.0)) if params is not None else 1.0
+        if params is not None and "MPC_THR_HOVER" in params and not self.sub_hover.advertised:
+            self.hover_thrust = float(params["MPC_THR_HOVER"])
+
+    # -- inputs ------------------------------------------------------------------------------
+
+    def _poll(self) -> None:
+        m = self.sub_mode.update()
+        if m is not None:
+            self.stabilized = bool(m.flag_control_attitude_enabled
+                                   and m.flag_control_manual_enabled
+                                   and not m.flag_control_climb_rate_enabled
+                                   and not m.flag_control_velocity_enabled
+                                   and not m.flag_control_position_enabled)
+        m = self.sub_land.update()
+        if m is not None:
+            self.landed = bool(m.landed)
+        m = self.sub_armed.update()
+        if m is not None:
+            self.armed = bool(m.armed)
+        m = self.sub_manual.update()
+        if m is not None:
+            self.manual = m
+        m = self.sub_hover.update()
+        if m is not None and m.valid:
+            self.hover_thrust = float(m.hover_thrust)
+        if self.sub_param.updated():
+            self.sub_param.update()
+            self._load_params()
+        if not self.stabilized:
+            sp = self.sub_att_sp.update()
+            if sp is not None:
+                self.qd = tuple(sp.q_d)  # type: ignore[assignment]
+                tb = sp.thrust_body
+                self.thrust_body[0], self.thrust_body[1], self.thrust_body[2] = tb[0], tb[1], tb[2]
+                self.yawspeed_ff = sp.yaw_sp_move_rate
+                self.reset_integral = bool(sp.reset_integral)
+                self.have_sp = True
+
+    def _throttle_curve(self, stick: float) -> float:
+        """Throttle stick (-1..1) to collective thrust: mid stick is hover unless curve = 1."""
+        t = min(max(0.5 * (stick + 1.0), 0.0), 1.0)
+        lo, hi = self.manthr_min, self.thr_max
+        if self.thr_curve == 1:
+            return lo + (hi - lo) * t
+        h = min(max(self.hover_thrust, lo), hi)
+        if t < 0.5:
+            return lo + (h - lo) * 2.0 * t
+        return h + (hi - h) * 2.0 * (t - 0.5)
+
+    def _stabilized_setpoint(self, q: Quat, dt: float) -> None:
+        """Sticks -> attitude setpoint (tilt vector in the heading frame, yaw from the rate)."""
+        man = self.manual
+        yaw = qyaw(q)
+        thr = self._throttle_curve(man.throttle)
+        if not self.armed or self.landed and thr <= self.manthr_min + 0.05:
+            self.man_yaw_sp = yaw
+            self.yawspeed_ff = 0.0
+        else:
+            self.yawspeed_ff = man.yaw * self.man_yaw_max
+            self.man_yaw_sp += self.yawspeed_ff * dt
+            # do not let the heading setpoint run away from the vehicle
+            err = math.remainder(self.man_yaw_sp - yaw, 2.0 * math.pi)
+            lim = 0.5 * math.pi
+            if abs(err) > lim:
+                self.man_yaw_sp = yaw + math.copysign(lim, err)
+        self.man_yaw_sp = math.remainder(self.man_yaw_sp, 2.0 * math.pi)
+        tilt = self.man_tilt_max
+        q_tilt = qfrom_axis_angle(man.roll * tilt, -man.pitch * tilt, 0.0)
+        self.qd = qmul(qfrom_euler(0.0, 0.0, self.man_yaw_sp), q_tilt)
+        self.thrust_body[0] = self.thrust_body[1] = 0.0
+        self.thrust_body[2] = -thr
+        m = self.att_sp_msg
+        m.timestamp = self.platform.hrt.absolute_time()
+        w, x, y, z = self.qd
+        m.roll_body = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+        m.pitch_body = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+        m.yaw_body = self.man_yaw_sp
+        m.yaw_sp_move_rate = self.yawspeed_ff
+        m.q_d[0], m.q_d[1], m.q_d[2], m.q_d[3] = w, x, y, z
+        m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = 0.0, 0.0, -thr
+        self.pub_att_sp.publish(m)
+        # our own publication must not come back as an external setpoint
+        self.sub_att_sp.update()
+        self.have_sp = True
+
+    # -- the loop ----------------------------------------------------------------------------
+
+    def run(self) -> None:
+        att = self.sub_att.update()
+        if att is None:
+            return
+        self._poll()
+        q: Quat = tuple(att.q)  # type: ignore[assignment]
+        t = att.timestamp_sample
+        dt = (t - self.last_att_us) * 1e-6
+        self.last_att_us = t
+        if dt <= 0.0 or dt > 0.1:
+            dt = 0.004
+        if self.stabilized:
+            self._stabilized_setpoint(q, dt)
+        if not self.have_sp:
+            return
+        ex, ey, ez = attitude_error_rates(q, self.qd, self.yaw_w)
+        kr, kp, ky = self.gains
+        rr, rp, ry = kr * ex, kp * ey, ky * ez
+        # yaw rate feed-forward: world z rate expressed in body axes
+        ff = self.yawspeed_ff
+        if ff != 0.0:
+            w, x, y, z = q
+            rr += ff * 2.0 * (x * z - w * y)
+            rp += ff * 2.0 * (y * z + w * x)
+            ry += ff * (w * w - x * x - y * y + z * z)
+        mr, mp, my = self.rate_max
+        m = self.rates_msg
+        m.timestamp = self.platform.hrt.absolute_time()
+        m.roll = -mr if rr < -mr else (min(rr, mr))
+        m.pitch = -mp if rp < -mp else (min(rp, mp))
+        m.yaw = -my if ry < -my else (min(ry, my))
+        tb = self.thrust_body
+        m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = tb[0], tb[1], tb[2]
+        m.reset_integral = self.reset_integral
+        self.pub_rates.publish(m)
+
+    def status_lines(self) -> list[str]:
+        m = self.rates_msg
+        return [f"stabilized {self.stabilized} armed {self.armed} landed {self.landed}",
+                (f"rate sp r {m.roll:+.3f} p {m.pitch:+.3f} y {m.yaw:+.3f} "
+                 f"thrust {-m.thrust_body[2]:.3f}")]
