@@ -196,10 +196,13 @@ class FmuV2Board(Board):
                                       host_clock=self._host_clock,
                                       console=lambda text: console.write(text.encode()))
         system.hw = self
+        system.adc = self.adc
         defs = list(system_params.PARAMS) + registry.param_defs()
         storage = None
         if registry.start("mtd") == 0:
-            storage = ParamStorage(registry.get("mtd").partition("params"))
+            mtd = registry.get("mtd")
+            storage = ParamStorage(mtd.partition("params"))
+            system.waypoints_partition = mtd.partition("waypoints")
         params = Params(p, defs, storage)
         system.params = params
         if self._param_overrides and storage is not None:

@@ -17,7 +17,8 @@ def dummy(name):
 
 #: modules replaced by dummies (no board hardware in these tests)
 DUMMIES = ("mpu6000", "sensors", "commander", "px4io", "fmu", "ekf2", "mc_att_control",
-           "mc_pos_control", "logger")
+           "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
+           "mc_rate_control")
 #: modules made unavailable on purpose, to check that a missing module is reported and skipped
 MISSING = ("l3gd20", "lsm303d", "ms5611", "hmc5883", "gps", "navigator", "land_detector",
            "mavlink")
@@ -76,7 +77,8 @@ def test_rcs_no_airframe_starts_no_vehicle(platform, sd):
     status, text = b.boot()
     assert status == 0
     assert "[init] SYS_AUTOSTART 0: no airframe" in text
-    assert b.running == {"mpu6000", "sensors", "logger"}
+    assert b.running == {"mpu6000", "sensors", "logger", "dataman", "rc_update",
+                         "battery_status"}
     assert b.shell.env["VEHICLE_TYPE"] == "none"
     assert text.rstrip().endswith("[init] startup done")
 
@@ -87,7 +89,8 @@ def test_rcs_quad_x_starts_mc_apps_and_reports_missing_modules(platform, sd):
     assert status == 0
     assert "[init] airframe: 4001_quad_x" in text
     assert b.running == {"mpu6000", "sensors", "commander", "px4io", "ekf2", "mc_att_control",
-                         "mc_pos_control", "logger"}
+                         "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
+                         "mc_rate_control"}
     env = b.shell.env
     assert (env["VEHICLE_TYPE"], env["MIXER"], env["PWM_OUT"]) == ("mc", "quad_x", "1234")
     assert env["MIXER_FILE"] == "/etc/mixers/quad_x.main.mix"
@@ -113,8 +116,11 @@ def test_f450_autoconfig_sets_its_parameters_once(platform, sd):
     assert b.shell.env["MIXER"] == "quad_x"
     assert "[init] mixer: /etc/mixers/quad_x.main.mix" in text
     # gains of controllers not in this build: reported with the line, skipped
-    assert "/etc/init.d/airframes/4011_dji_f450:15: param set: parameter MC_ROLL_P not found" \
-        in text
+    lineno = next(i for i, line in enumerate(
+        open(romfs.ROMFS_ROOT / "init.d/airframes/4011_dji_f450").read().splitlines(), 1)
+        if "param set MC_ROLL_P" in line)
+    assert (f"/etc/init.d/airframes/4011_dji_f450:{lineno}: param set: parameter MC_ROLL_P "
+            "not found") in text
     assert b.system.params["SYS_AUTOCONFIG"] == 0
     assert b.system.params["SDLOG_MODE"] == 0       # from rc.mc_defaults under AUTOCNF
 

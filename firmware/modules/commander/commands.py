@@ -1,0 +1,276 @@
+"""The commander's inputs that ask for something: vehicle_command, RC switches and gestures, and
+the shell (``commander arm|disarm|takeoff|land|mode|check``).
+
+A mixin of :class:`~firmware.modules.commander.commander.CommanderModule`, kept apart because
+it is a dispatch table over MAVLink command numbers rather than vehicle logic. Every command the
+commander handles is answered with ``vehicle_command_ack``; commands other modules handle
+(mission, camera, message intervals) are left alone; anything else is acked UNSUPPORTED.
+The shell builds the same vehicle_command and runs it synchronously, so a shell arm and a GCS
+arm take the same path and both show up in the log as acks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from firmware.modules.commander import modes
+from firmware.modules.commander.params import FORCE_ARM_MAGIC
+from firmware.platform.module import UsageError
+
+__all__ = ["CMD", "RESULT", "CommandHandler"]
+
+#: MAV_CMD ids the commander knows
+CMD = {
+    "NAV_RETURN_TO_LAUNCH": 20, "NAV_LAND": 21, "NAV_TAKEOFF": 22, "DO_SET_MODE": 176,
+    "DO_SET_HOME": 179, "DO_FLIGHTTERMINATION": 185, "DO_REPOSITION": 192,
+    "PREFLIGHT_REBOOT_SHUTDOWN": 246, "MISSION_START": 300, "COMPONENT_ARM_DISARM": 400,
+}
+ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
+RESULT = {ACCEPTED: "accepted", TEMPORARILY_REJECTED: "temporarily rejected", DENIED: "denied",
+          UNSUPPORTED: "unsupported", FAILED: "failed"}
+#: commands answered by other modules (navigator, mavlink, camera, actuators): no ack here
+IGNORED = frozenset({16, 17, 19, 177, 178, 183, 184, 187, 189, 195, 197, 201, 205, 206, 241,
+                     242, 245, 511, 512, 519, 520, 2000, 2001, 2500, 2501, 2502, 2503})
+SWITCH_NONE, SWITCH_ON, SWITCH_OFF = 0, 1, 3
+_MAV_MODE_FLAG_CUSTOM, _FLAG_AUTO, _FLAG_GUIDED, _FLAG_STABILIZE, _FLAG_MANUAL = 1, 4, 8, 16, 64
+_GESTURE_STICK = 0.8
+_MANUAL_NAV = frozenset({modes.MANUAL, modes.STAB, modes.ACRO, modes.ALTCTL, modes.POSCTL})
+
+
+class CommandHandler:
+    """vehicle_command dispatch, RC switches and gestures, shell commands."""
+
+    last_reason = ""
+    # provided by CommanderModule
+    arming_state: int
+    user_nav: int
+    p: dict[str, Any]
+
+    # -- vehicle_command --------------------------------------------------------------------
+
+    def handle_command(self, cmd: Any) -> int | None:
+        """Execute one command and ack it; None if it is not for us (no ack)."""
+        if cmd.target_system not in (0, self.sys_id):  # type: ignore[attr-defined]
+            return None
+        handler: Callable[[Any], int] | None = self._handlers().get(int(cmd.command))
+        self.last_reason = ""
+        if handler is None:
+            if cmd.command in IGNORED:
+                return None
+            result = UNSUPPORTED
+            self.last_reason = f"command {cmd.command} not supported"
+        else:
+            result = handler(cmd)
+        self.ack(cmd, result)  # type: ignore[attr-defined]
+        return result
+
+    def _handlers(self) -> dict[int, Callable[[Any], int]]:
+        return {CMD["COMPONENT_ARM_DISARM"]: self._cmd_arm, CMD["DO_SET_MODE"]: self._cmd_mode,
+                CMD["NAV_TAKEOFF"]: self._mode_cmd(modes.AUTO_TAKEOFF),
+                CMD["NAV_LAND"]: self._mode_cmd(modes.AUTO_LAND),
+                CMD["NAV_RETURN_TO_LAUNCH"]: self._mode_cmd(modes.AUTO_RTL),
+                CMD["MISSION_START"]: self._mode_cmd(modes.AUTO_MISSION),
+                CMD["DO_REPOSITION"]: self._cmd_reposition,
+                CMD["DO_SET_HOME"]: self._cmd_set_home,
+                CMD["DO_FLIGHTTERMINATION"]: self._cmd_terminate,
+                CMD["PREFLIGHT_REBOOT_SHUTDOWN"]: self._cmd_reboot}
+
+    def _cmd_arm(self, cmd: Any) -> int:
+        from firmware.modules.commander.commander import R_CMD_EXTERNAL, R_CMD_INTERNAL
+        force = round(cmd.param2) == FORCE_ARM_MAGIC
+        reason = R_CMD_EXTERNAL if cmd.from_external else R_CMD_INTERNAL
+        if cmd.param1 == 1.0:
+            ok, why = self.arm(reason, force)  # type: ignore[attr-defined]
+        elif cmd.param1 == 0.0:
+            ok, why = self.disarm(reason, force)  # type: ignore[attr-defined]
+        else:
+            self.last_reason = f"arm/disarm: param1 {cmd.param1} is neither 0 nor 1"
+            return DENIED
+        self.last_reason = why
+        return ACCEPTED if ok else TEMPORARILY_REJECTED
+
+    def _set_mode(self, nav: int, why: str) -> int:
+        ok, text = self.set_user_mode(nav, why)  # type: ignore[attr-defined]
+        self.last_reason = text
+        return ACCEPTED if ok else TEMPORARILY_REJECTED
+
+    def _mode_cmd(self, nav: int) -> Callable[[Any], int]:
+        return lambda cmd: self._set_mode(nav, "command")
+
+    def _cmd_mode(self, cmd: Any) -> int:
+        base = int(cmd.param1)
+        if base & _MAV_MODE_FLAG_CUSTOM:
+            nav = modes.custom_to_nav(int(cmd.param2), int(cmd.param3))
+        elif base & _FLAG_AUTO:
+            nav = modes.AUTO_MISSION
+        elif base & _FLAG_MANUAL:
+            nav = (modes.POSCTL if base & _FLAG_GUIDED else
+                   modes.STAB if base & _FLAG_STABILIZE else modes.MANUAL)
+        else:
+            nav = None
+        if nav is None:
+            self.last_reason = (f"mode base {base} main {cmd.param2:g} sub {cmd.param3:g} "
+                                "unknown")
+            return UNSUPPORTED
+        return self._set_mode(nav, "command")
+
+    def _cmd_reposition(self, cmd: Any) -> int:
+        if int(cmd.param2) & 1 or self.user_nav == modes.AUTO_LOITER:
+            return self._set_mode(modes.AUTO_LOITER, "reposition")
+        self.last_reason = "reposition only in Hold mode"
+        return TEMPORARILY_REJECTED
+
+    def _cmd_set_home(self, cmd: Any) -> int:
+        now = self.platform.time_us()  # type: ignore[attr-defined]
+        if cmd.param1 == 1.0:
+            ok = self.set_home(now)  # type: ignore[attr-defined]
+        elif math.isfinite(cmd.param5) and math.isfinite(cmd.param6):
+            ok = self.set_home(now, False, cmd.param5, cmd.param6,  # type: ignore[attr-defined]
+                               cmd.param7 if math.isfinite(cmd.param7) else 0.0)
+        else:
+            ok = False
+        self.last_reason = "" if ok else "no position for home"
+        return ACCEPTED if ok else TEMPORARILY_REJECTED
+
+    def _cmd_terminate(self, cmd: Any) -> int:
+        if cmd.param1 > 0.5:
+            self.terminated = True
+            self.error("Flight termination active")  # type: ignore[attr-defined]
+        return ACCEPTED
+
+    def _cmd_reboot(self, cmd: Any) -> int:
+        if int(cmd.param1) not in (1, 3):
+            return UNSUPPORTED
+        if self.arming_state == 2:
+            self.last_reason = "reboot refused while armed"
+            return DENIED
+        ok = self.system.reboot(int(cmd.param1) == 3)  # type: ignore[attr-defined]
+        return ACCEPTED if ok else FAILED
+
+    # -- RC ---------------------------------------------------------------------------------
+
+    def _slot_nav(self, slot: int) -> int | None:
+        if not 1 <= slot <= 6:
+            return None
+        return modes.FLTMODE_TO_NAV.get(int(self.p[f"COM_FLTMODE{slot}"]))
+
+    def _handle_switches(self, sw: Any) -> None:
+        """Act on switch *changes* (PX4: a switch already ON at boot does not arm)."""
+        from firmware.modules.commander.commander import R_RC_SWITCH
+        last: dict[str, int] = self._sw_last  # type: ignore[attr-defined]
+        prev = dict(last)
+        for name in ("mode_slot", "arm_switch", "return_switch", "loiter_switch",
+                     "kill_switch"):
+            last[name] = int(getattr(sw, name))
+        if sw.kill_switch != SWITCH_NONE:
+            engaged = sw.kill_switch == SWITCH_ON
+            if engaged != self.kill_engaged:  # type: ignore[has-type]
+                self.kill_engaged = engaged
+                (self.warn if engaged else self.info)(  # type: ignore[attr-defined]
+                    "Kill-switch engaged" if engaged else "Kill-switch disengaged")
+        a, a0 = sw.arm_switch, prev.get("arm_switch")
+        if a != SWITCH_NONE and a0 is not None and a != a0:
+            if a == SWITCH_ON:
+                self.arm(R_RC_SWITCH)  # type: ignore[attr-defined]
+            elif a == SWITCH_OFF:
+                self.disarm(R_RC_SWITCH)  # type: ignore[attr-defined]
+        override = False
+        for name, nav in (("return_switch", modes.AUTO_RTL), ("loiter_switch",
+                                                               modes.AUTO_LOITER)):
+            v, v0 = getattr(sw, name), prev.get(name)
+            if v == SWITCH_ON:
+                override = True
+                if v0 != SWITCH_ON:
+                    self._set_mode(nav, name.replace("_", " "))
+            elif v == SWITCH_OFF and v0 == SWITCH_ON:
+                slot_nav = self._slot_nav(sw.mode_slot)
+                if slot_nav is not None:
+                    self._set_mode(slot_nav, f"mode slot {sw.mode_slot}")
+        slot = sw.mode_slot
+        if not override and slot != prev.get("mode_slot"):
+            slot_nav = self._slot_nav(slot)
+            if slot_nav is not None:
+                self._set_mode(slot_nav, f"mode slot {slot}")
+
+    def _handle_gestures(self, now: int) -> None:
+        """Throttle low + yaw right held COM_RC_ARM_HYST arms; yaw left disarms (landed)."""
+        from firmware.modules.commander.commander import ARMED, R_RC_STICK
+        m = self.data.manual.node.last  # type: ignore[attr-defined]
+        usable = (self.rc_ok and m is not None and self.p["MAN_ARM_GESTURE"]  # type: ignore
+                  and self._sw_last.get("arm_switch", SWITCH_NONE) == SWITCH_NONE)  # type: ignore
+        gesture = None
+        if usable and m.throttle < -_GESTURE_STICK:
+            armed = self.arming_state == ARMED
+            if m.yaw > _GESTURE_STICK and not armed:
+                gesture = "arm"
+            elif m.yaw < -_GESTURE_STICK and armed:
+                gesture = "disarm"
+        if gesture is None:
+            self._gesture_since, self._gesture_done = None, False
+            return
+        if self._gesture_done:
+            return
+        if self._gesture_since is None:
+            self._gesture_since = now
+        if now - self._gesture_since < int(self.p["COM_RC_ARM_HYST"]) * 1000:
+            return
+        self._gesture_done = True
+        if gesture == "arm":
+            if self.user_nav not in _MANUAL_NAV:
+                self.warn("Stick arming only in manual modes")  # type: ignore[attr-defined]
+                return
+            self.arm(R_RC_STICK)  # type: ignore[attr-defined]
+        else:
+            self.disarm(R_RC_STICK)  # type: ignore[attr-defined]
+
+    # -- shell ------------------------------------------------------------------------------
+
+    def _command(self, command: int, **params: float) -> Any:
+        cmd = self._cmd_cls()  # type: ignore[attr-defined]
+        cmd.timestamp = self.platform.time_us()  # type: ignore[attr-defined]
+        cmd.command = command
+        cmd.param5 = cmd.param6 = math.nan
+        cmd.param7 = math.nan
+        for k, v in params.items():
+            setattr(cmd, k, v)
+        cmd.target_system = self.sys_id  # type: ignore[attr-defined]
+        cmd.source_system = self.sys_id  # type: ignore[attr-defined]
+        return cmd
+
+    def _run_shell(self, what: str, command: int, **params: float) -> int:
+        result = self.handle_command(self._command(command, **params))
+        text = f"{what}: {RESULT.get(result, result)}" if result is not None else what
+        if self.last_reason and result != ACCEPTED:
+            text += f" ({self.last_reason})"
+        self.print(text)  # type: ignore[attr-defined]
+        return 0 if result == ACCEPTED else 1
+
+    def custom_command(self, args: list[str]) -> int:
+        verb, rest = args[0], args[1:]
+        force = float(FORCE_ARM_MAGIC) if "-f" in rest else 0.0
+        arm = CMD["COMPONENT_ARM_DISARM"]
+        if verb == "arm":
+            return self._run_shell("arm", arm, param1=1.0, param2=force)
+        if verb == "disarm":
+            return self._run_shell("disarm", arm, param1=0.0, param2=force)
+        if verb == "takeoff":
+            rc = self._run_shell("takeoff", CMD["NAV_TAKEOFF"])
+            return rc or self._run_shell("arm", arm, param1=1.0)
+        if verb == "land":
+            return self._run_shell("land", CMD["NAV_LAND"])
+        if verb == "mode":
+            if not rest or rest[0] not in modes.MODE_NAMES:
+                raise UsageError(f"mode: one of {', '.join(modes.MODE_NAMES)}")
+            nav = modes.MODE_NAMES[rest[0]]
+            main, sub = modes.nav_to_custom(nav)
+            return self._run_shell(f"mode {rest[0]}", CMD["DO_SET_MODE"], param1=1.0,
+                                   param2=float(main), param3=float(sub))
+        if verb == "check":
+            failures = self.run_checks(self.platform.time_us())  # type: ignore[attr-defined]
+            for f in failures:
+                self.print(f.text)  # type: ignore[attr-defined]
+            self.print("Preflight check: " + ("OK" if not failures else "FAILED"))  # type: ignore
+            return 0 if not failures else 1
+        return super().custom_command(args)  # type: ignore[misc]

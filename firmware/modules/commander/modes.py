@@ -1,0 +1,125 @@
+"""Flight modes as data: PX4's navigation states, custom modes, requirements and control flags.
+
+Everything the commander decides about a mode is a table lookup here, so adding a mode means
+adding rows, not branches. Numbers are PX4's (vehicle_status NAVIGATION_STATE_*, MAVLink PX4
+custom main/sub modes, COM_FLTMODEn values, MAV_CMD ids).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "FLTMODE_TO_NAV", "MODE_NAMES", "NAV_NAMES", "NO_ARMING", "REQUIREMENTS",
+    "control_flags", "custom_to_nav", "nav_to_custom",
+]
+
+# vehicle_status.NAVIGATION_STATE_*
+MANUAL, ALTCTL, POSCTL, AUTO_MISSION, AUTO_LOITER, AUTO_RTL = 0, 1, 2, 3, 4, 5
+ACRO, DESCEND, TERMINATION, OFFBOARD, STAB = 10, 12, 13, 14, 15
+AUTO_TAKEOFF, AUTO_LAND, AUTO_PRECLAND = 17, 18, 20
+
+NAV_NAMES: dict[int, str] = {
+    MANUAL: "Manual", ALTCTL: "Altitude", POSCTL: "Position", AUTO_MISSION: "Mission",
+    AUTO_LOITER: "Hold", AUTO_RTL: "Return", ACRO: "Acro", DESCEND: "Descend",
+    TERMINATION: "Termination", OFFBOARD: "Offboard", STAB: "Stabilized",
+    AUTO_TAKEOFF: "Takeoff", AUTO_LAND: "Land", AUTO_PRECLAND: "Precision Land",
+}
+
+# PX4 custom modes (MAVLink HEARTBEAT custom_mode / DO_SET_MODE param2, param3)
+MAIN_MANUAL, MAIN_ALTCTL, MAIN_POSCTL, MAIN_AUTO, MAIN_ACRO, MAIN_OFFBOARD, MAIN_STAB = \
+    1, 2, 3, 4, 5, 6, 7
+SUB_READY, SUB_TAKEOFF, SUB_LOITER, SUB_MISSION, SUB_RTL, SUB_LAND = 1, 2, 3, 4, 5, 6
+SUB_PRECLAND = 9
+
+_CUSTOM: dict[tuple[int, int], int] = {
+    (MAIN_MANUAL, 0): MANUAL, (MAIN_ALTCTL, 0): ALTCTL, (MAIN_POSCTL, 0): POSCTL,
+    (MAIN_ACRO, 0): ACRO, (MAIN_OFFBOARD, 0): OFFBOARD, (MAIN_STAB, 0): STAB,
+    (MAIN_AUTO, SUB_TAKEOFF): AUTO_TAKEOFF, (MAIN_AUTO, SUB_LOITER): AUTO_LOITER,
+    (MAIN_AUTO, SUB_MISSION): AUTO_MISSION, (MAIN_AUTO, SUB_RTL): AUTO_RTL,
+    (MAIN_AUTO, SUB_LAND): AUTO_LAND, (MAIN_AUTO, SUB_PRECLAND): AUTO_PRECLAND,
+}
+_NAV_TO_CUSTOM = {nav: key for key, nav in _CUSTOM.items()}
+_NAV_TO_CUSTOM[DESCEND] = (MAIN_AUTO, SUB_LAND)
+_NAV_TO_CUSTOM[TERMINATION] = (MAIN_MANUAL, 0)
+
+#: COM_FLTMODEn value -> navigation state (-1 unassigned)
+FLTMODE_TO_NAV: dict[int, int] = {
+    0: MANUAL, 1: ALTCTL, 2: POSCTL, 3: AUTO_MISSION, 4: AUTO_LOITER, 5: AUTO_RTL, 6: ACRO,
+    7: OFFBOARD, 8: STAB, 10: AUTO_TAKEOFF, 11: AUTO_LAND, 13: AUTO_PRECLAND,
+}
+
+#: ``commander mode <name>`` (PX4's names first, then friendly aliases)
+MODE_NAMES: dict[str, int] = {
+    "manual": MANUAL, "altctl": ALTCTL, "posctl": POSCTL, "acro": ACRO, "offboard": OFFBOARD,
+    "stabilized": STAB, "auto:mission": AUTO_MISSION, "auto:loiter": AUTO_LOITER,
+    "auto:rtl": AUTO_RTL, "auto:takeoff": AUTO_TAKEOFF, "auto:land": AUTO_LAND,
+    "auto:precland": AUTO_PRECLAND,
+    "stab": STAB, "altitude": ALTCTL, "position": POSCTL, "mission": AUTO_MISSION,
+    "loiter": AUTO_LOITER, "hold": AUTO_LOITER, "rtl": AUTO_RTL, "return": AUTO_RTL,
+    "takeoff": AUTO_TAKEOFF, "land": AUTO_LAND,
+}
+
+# What a mode needs to run. "manual": stick input; "alt": a valid altitude estimate;
+# "lpos": local horizontal position; "gpos": global position; "home"; "mission"; "never":
+# not implemented in this stack (offboard, precision landing).
+REQUIREMENTS: dict[int, frozenset[str]] = {
+    MANUAL: frozenset({"manual"}), STAB: frozenset({"manual"}), ACRO: frozenset({"manual"}),
+    ALTCTL: frozenset({"manual", "alt"}), POSCTL: frozenset({"manual", "alt", "lpos"}),
+    AUTO_MISSION: frozenset({"alt", "lpos", "gpos", "mission"}),
+    AUTO_LOITER: frozenset({"alt", "lpos", "gpos"}),
+    AUTO_RTL: frozenset({"alt", "lpos", "gpos", "home"}),
+    AUTO_TAKEOFF: frozenset({"alt", "lpos", "gpos"}),
+    AUTO_LAND: frozenset({"alt", "gpos"}),
+    DESCEND: frozenset(), TERMINATION: frozenset(),
+    OFFBOARD: frozenset({"never"}), AUTO_PRECLAND: frozenset({"never"}),
+}
+
+#: modes from which arming is refused (PX4: the vehicle would not know what to do on the ground)
+NO_ARMING = frozenset({AUTO_RTL, AUTO_LAND, DESCEND, TERMINATION, AUTO_PRECLAND})
+
+_RATES, _ATT, _ALT, _CLIMB, _POS, _VEL, _ACC = 1, 2, 4, 8, 16, 32, 64
+_MANUAL_F, _AUTO_F, _TERM_F = 128, 256, 512
+_FLAGS: dict[int, int] = {
+    MANUAL: _MANUAL_F | _RATES | _ATT,      # a multicopter's manual mode is stabilized
+    STAB: _MANUAL_F | _RATES | _ATT,
+    ACRO: _MANUAL_F | _RATES,
+    ALTCTL: _MANUAL_F | _RATES | _ATT | _ALT | _CLIMB,
+    POSCTL: _MANUAL_F | _RATES | _ATT | _ALT | _CLIMB | _POS | _VEL | _ACC,
+    DESCEND: _AUTO_F | _RATES | _ATT | _CLIMB,
+    TERMINATION: _TERM_F,
+    OFFBOARD: _RATES | _ATT | _ALT | _CLIMB | _POS | _VEL | _ACC,
+}
+for _nav in (AUTO_MISSION, AUTO_LOITER, AUTO_RTL, AUTO_TAKEOFF, AUTO_LAND, AUTO_PRECLAND):
+    _FLAGS[_nav] = _AUTO_F | _RATES | _ATT | _ALT | _CLIMB | _POS | _VEL | _ACC
+
+
+def control_flags(nav_state: int) -> dict[str, bool]:
+    """vehicle_control_mode flags for a navigation state (multicopter)."""
+    f = _FLAGS.get(nav_state, _MANUAL_F | _RATES | _ATT)
+    out = {
+        "flag_control_manual_enabled": bool(f & _MANUAL_F),
+        "flag_control_auto_enabled": bool(f & _AUTO_F),
+        "flag_control_offboard_enabled": nav_state == OFFBOARD,
+        "flag_control_rates_enabled": bool(f & _RATES),
+        "flag_control_attitude_enabled": bool(f & _ATT),
+        "flag_control_acceleration_enabled": bool(f & _ACC),
+        "flag_control_velocity_enabled": bool(f & _VEL),
+        "flag_control_position_enabled": bool(f & _POS),
+        "flag_control_altitude_enabled": bool(f & _ALT),
+        "flag_control_climb_rate_enabled": bool(f & _CLIMB),
+        "flag_control_termination_enabled": bool(f & _TERM_F),
+    }
+    out["flag_multicopter_position_control_enabled"] = bool(
+        f & (_ALT | _CLIMB | _POS | _VEL | _ACC))
+    return out
+
+
+def custom_to_nav(main_mode: int, sub_mode: int) -> int | None:
+    """The navigation state of a PX4 custom mode, or None if there is none."""
+    if main_mode == MAIN_AUTO:
+        return _CUSTOM.get((main_mode, sub_mode))
+    return _CUSTOM.get((main_mode, 0))
+
+
+def nav_to_custom(nav_state: int) -> tuple[int, int]:
+    """PX4 custom (main, sub) mode of a navigation state (what MAVLink's heartbeat reports)."""
+    return _NAV_TO_CUSTOM.get(nav_state, (MAIN_MANUAL, 0))

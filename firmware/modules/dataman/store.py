@@ -1,0 +1,202 @@
+"""Mission storage: PX4's dataman reduced to what missions need, in memory, optionally persistent.
+
+PX4 keeps two waypoint slots (``dataman_id`` 0 and 1) so that a mission can be uploaded into the
+unused slot while the vehicle flies the other; the ``mission`` topic then switches the active slot
+in one step. The same scheme is kept here: :meth:`MissionStore.write_item` fills a slot item by
+item (the MAVLink mission protocol delivers one item per message), :meth:`MissionStore.commit`
+makes it the active mission.
+
+Persistence is a hook: any object with ``size``, ``read(offset, n)`` and ``write(offset, data)``
+(the FRAM ``waypoints`` partition, a :class:`~firmware.platform.params.MemoryPartition`). Only the
+active mission is written, as one record guarded by a CRC, so a power cut during a save leaves
+either the old or the new mission, never a mix that the navigator would fly.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Callable, Iterable
+from typing import Any, Protocol
+
+from firmware.platform.msgdef import MessageRegistry, default_registry
+
+__all__ = ["MISSION_SLOTS", "MissionStore", "Partition", "StoreError"]
+
+#: number of mission slots (PX4's DM_KEY_WAYPOINTS_OFFBOARD_0 / _1)
+MISSION_SLOTS = 2
+#: most items one slot holds (PX4's DM_KEY_WAYPOINTS_OFFBOARD_0_MAX is 500 on FMUv2)
+MAX_ITEMS = 500
+
+_MAGIC = b"DMM1"
+_HEADER = struct.Struct("<4sBHiHI")  # magic, dataman_id, count, current_seq, counter, crc32
+
+
+class StoreError(ValueError):
+    """A bad index, slot or item: a bug in the caller (MAVLink, a test), so it raises."""
+
+
+class Partition(Protocol):
+    size: int
+
+    def read(self, offset: int, n: int) -> bytes | None: ...
+
+    def write(self, offset: int, data: bytes) -> bool: ...
+
+
+class MissionStore:
+    """Two mission slots in memory; the active one mirrored to a partition if given."""
+
+    def __init__(self, partition: Partition | None = None,
+                 registry: MessageRegistry | None = None) -> None:
+        self.registry = registry or default_registry()
+        self.item_cls = self.registry.cls("mission_item")
+        self._item_size = len(self.item_cls().pack())
+        self.partition = partition
+        self.slots: list[list[Any]] = [[] for _ in range(MISSION_SLOTS)]
+        #: the active mission: slot, item count, item to start/resume at, upload counter
+        self.dataman_id = 0
+        self.count = 0
+        self.current_seq = 0
+        self.update_counter = 0
+        self.saves = 0
+        self.save_failures = 0
+        #: called after the active mission or its current item changed (the module publishes
+        #: the ``mission`` topic from here, as PX4's mavlink mission manager does)
+        self.listeners: list[Callable[[], None]] = []
+
+    # -- items --------------------------------------------------------------------------------
+
+    def new_item(self, **fields: Any) -> Any:
+        """A mission_item with PX4's defaults for what MAVLink leaves out (autocontinue on)."""
+        item = self.item_cls()
+        item.autocontinue = True
+        item.yaw = float("nan")
+        for k, v in fields.items():
+            setattr(item, k, v)
+        return item
+
+    def _slot(self, dataman_id: int) -> list[Any]:
+        if type(dataman_id) is not int or not 0 <= dataman_id < MISSION_SLOTS:
+            raise StoreError(f"dataman: mission slot must be 0..{MISSION_SLOTS - 1}, "
+                             f"got {dataman_id!r}")
+        return self.slots[dataman_id]
+
+    def write_item(self, dataman_id: int, index: int, item: Any) -> None:
+        """Store ``item`` (a copy) at ``index`` of a slot; indexes fill in order from 0."""
+        slot = self._slot(dataman_id)
+        if type(index) is not int or not 0 <= index <= len(slot) or index >= MAX_ITEMS:
+            raise StoreError(f"dataman: item index {index!r} outside 0..{min(len(slot), MAX_ITEMS - 1)}"
+                             f" of slot {dataman_id}")
+        if index == len(slot):
+            slot.append(item.copy())
+        else:
+            slot[index] = item.copy()
+
+    def read_item(self, dataman_id: int, index: int) -> Any | None:
+        """The stored item (read-only, do not modify) or None past the end."""
+        slot = self._slot(dataman_id)
+        return slot[index] if 0 <= index < len(slot) else None
+
+    def item(self, index: int) -> Any | None:
+        """Item ``index`` of the active mission, or None."""
+        if not 0 <= index < self.count:
+            return None
+        return self.slots[self.dataman_id][index]
+
+    def items(self) -> list[Any]:
+        return self.slots[self.dataman_id][: self.count]
+
+    # -- missions -----------------------------------------------------------------------------
+
+    def inactive_slot(self) -> int:
+        return (self.dataman_id + 1) % MISSION_SLOTS
+
+    def commit(self, dataman_id: int, count: int, current_seq: int = 0) -> None:
+        """Make ``count`` items of slot ``dataman_id`` the active mission and save it."""
+        slot = self._slot(dataman_id)
+        if not 0 <= count <= len(slot):
+            raise StoreError(f"dataman: commit of {count} items but slot {dataman_id} "
+                             f"holds {len(slot)}")
+        del slot[count:]
+        self.dataman_id = dataman_id
+        self.count = count
+        self.current_seq = current_seq if 0 <= current_seq < max(count, 1) else 0
+        self.update_counter = (self.update_counter + 1) & 0xFFFF
+        self.save()
+        self._changed()
+
+    def store_mission(self, items: Iterable[Any], current_seq: int = 0) -> int:
+        """Write a whole mission into the inactive slot and activate it; returns the slot."""
+        dm = self.inactive_slot()
+        self.slots[dm] = []
+        n = 0
+        for n, item in enumerate(items, 1):
+            self.write_item(dm, n - 1, item)
+        self.commit(dm, n, current_seq)
+        return dm
+
+    def clear(self) -> None:
+        """No mission (MAVLink MISSION_CLEAR_ALL)."""
+        self.store_mission(())
+
+    def set_current(self, seq: int) -> bool:
+        """Jump to item ``seq`` (MAVLink MISSION_SET_CURRENT); False if out of range."""
+        if not 0 <= seq < self.count:
+            return False
+        self.current_seq = seq
+        self.update_counter = (self.update_counter + 1) & 0xFFFF
+        self.save()
+        self._changed()
+        return True
+
+    def _changed(self) -> None:
+        for fn in self.listeners:
+            fn()
+
+    # -- persistence ----------------------------------------------------------------------------
+
+    def record_size(self, count: int) -> int:
+        return _HEADER.size + count * self._item_size
+
+    def save(self) -> bool:
+        """Write the active mission to the partition (no-op without one); False on failure."""
+        part = self.partition
+        if part is None:
+            return True
+        body = b"".join(it.pack() for it in self.items())
+        if _HEADER.size + len(body) > part.size:
+            self.save_failures += 1
+            return False
+        fields = (self.dataman_id, self.count, self.current_seq, self.update_counter)
+        crc = zlib.crc32(struct.pack("<BHiH", *fields) + body)
+        head = _HEADER.pack(_MAGIC, *fields, crc)
+        # Body first, header (holding the CRC over both) last: a cut save fails the CRC.
+        ok = part.write(_HEADER.size, body) if body else True
+        ok = ok and bool(part.write(0, head))
+        self.saves += ok
+        self.save_failures += not ok
+        return ok
+
+    def load(self) -> str:
+        """Read the mission saved in the partition; the message says what happened."""
+        part = self.partition
+        if part is None:
+            return "no mission storage"
+        head = part.read(0, _HEADER.size)
+        if head is None or len(head) < _HEADER.size:
+            return "mission storage unreadable"
+        magic, dm, count, seq, counter, crc = _HEADER.unpack(head)
+        if magic != _MAGIC:
+            return "no mission stored"
+        if dm >= MISSION_SLOTS or self.record_size(count) > part.size:
+            return "stored mission header invalid; ignored"
+        body = part.read(_HEADER.size, count * self._item_size) if count else b""
+        if body is None or len(body) != count * self._item_size or \
+                zlib.crc32(struct.pack("<BHiH", dm, count, seq, counter) + body) != crc:
+            return "stored mission corrupt (CRC); ignored"
+        size = self._item_size
+        self.slots[dm] = [self.item_cls.unpack(body[i * size:(i + 1) * size])
+                          for i in range(count)]
+        self.dataman_id, self.count, self.current_seq, self.update_counter = dm, count, seq, counter
+        return f"mission of {count} items loaded"

@@ -1,0 +1,254 @@
+"""Mission mode: fly the dataman mission item by item.
+
+Per item: the setpoint (position, loiter, takeoff, land), reached-checks on the global position
+(horizontal acceptance radius: the item's or NAV_ACC_RAD; altitude: NAV_MC_ALT_RAD), a hold
+time (``time_inside``) once reached, then the next item if ``autocontinue``. As in PX4:
+
+* a mission started on the ground whose first item is not a takeoff climbs vertically first, to
+  the item's altitude but at least MIS_TAKEOFF_ALT above home;
+* a land item far from the vehicle first flies there at the current altitude, then lands;
+  landing completes the mission;
+* a return item hands over to the commander (NAV_RETURN_TO_LAUNCH);
+* after the last item the vehicle holds at it; the next activation after a finished mission
+  starts again from item 0;
+* yaw: the item's yaw if set, else heading towards the item.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from firmware.modules.navigator.geo import bearing_rad, distance_m
+from firmware.modules.navigator.modes import (
+    SP_LAND,
+    SP_LOITER,
+    SP_POSITION,
+    SP_TAKEOFF,
+    NavMode,
+)
+
+__all__ = ["MissionMode"]
+
+WAYPOINT, LOITER_UNLIM, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 19, 20, 21, 22
+_POSITION_ITEMS = frozenset({WAYPOINT, LOITER_UNLIM, LOITER_TIME, LAND, TAKEOFF})
+CMD_RTL = 20
+
+# work phases of one item
+P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE = range(6)
+
+
+class MissionMode(NavMode):
+    name = "mission"
+
+    def __init__(self, nav: Any) -> None:
+        super().__init__(nav)
+        self.items: list[Any] = []
+        self.index = 0
+        self.seq_reached = -1
+        self.finished = False
+        self.valid = False
+        self.phase = P_DONE
+        self.reached_at_us: int | None = None
+        self.mission_id = 0
+
+    # -- mission (re)load -------------------------------------------------------------------
+
+    def load(self, store: Any, mission: Any) -> None:
+        """A new mission (or a jump): take the items, start at its current item."""
+        self.items = list(store.items()) if store is not None else []
+        self.mission_id = int(mission.mission_update_counter)
+        self.index = int(mission.current_seq) if 0 <= mission.current_seq < len(self.items) \
+            else 0
+        self.seq_reached = -1
+        self.finished = False
+        self.valid = self._feasible()
+        self.phase = P_DONE
+        self.publish_result()
+
+    def _feasible(self) -> bool:
+        if not self.items:
+            return False
+        limit = self.nav.p["MIS_DIST_1WP"]
+        home = self.nav.home()
+        first = next((it for it in self.items if it.nav_cmd in _POSITION_ITEMS
+                      and it.nav_cmd != TAKEOFF), None)
+        if limit > 0 and home is not None and first is not None:
+            d = distance_m(home[0], home[1], first.lat, first.lon)
+            if d > limit:
+                self.nav.warn(f"Mission rejected: first waypoint {d:.0f} m from home "
+                              f"(MIS_DIST_1WP {limit:.0f} m)")
+                return False
+        return True
+
+    def start_at(self, seq: int) -> None:
+        """MISSION_START with a first item."""
+        if 0 <= seq < len(self.items):
+            self.index = seq
+            self.finished = False
+            self.publish_result()
+
+    def publish_result(self) -> None:
+        nav = self.nav
+        r = nav.result
+        r.mission_id = self.mission_id
+        r.seq_reached = self.seq_reached
+        r.seq_current = self.index if self.index < 0xFFFF else 0
+        r.seq_total = len(self.items)
+        r.valid = self.valid
+        r.finished = self.finished
+        r.failure = False
+        nav.publish_result()
+
+    # -- activation ---------------------------------------------------------------------------
+
+    def on_activation(self) -> None:
+        nav = self.nav
+        if not self.valid:
+            nav.warn("Mission not valid, holding")
+            nav.hold_here()
+            return
+        if self.finished or self.index >= len(self.items):
+            self.index, self.seq_reached, self.finished = 0, -1, False
+        self._start_item()
+        self.publish_result()
+
+    def _abs_alt(self, item: Any) -> float:
+        if item.altitude_is_relative or item.frame == 3:
+            h = self.nav.home_alt()
+            return item.altitude + (h if h is not None else 0.0)
+        return item.altitude
+
+    def _acc(self, item: Any) -> float:
+        return item.acceptance_radius if item.acceptance_radius > 0 else \
+            self.nav.p["NAV_ACC_RAD"]
+
+    def _yaw_to(self, item: Any, pos: tuple[float, float, float]) -> float:
+        if math.isfinite(item.yaw):
+            return item.yaw
+        if distance_m(pos[0], pos[1], item.lat, item.lon) > self._acc(item):
+            return bearing_rad(pos[0], pos[1], item.lat, item.lon)
+        return self.nav.heading()
+
+    def _start_item(self) -> None:
+        nav = self.nav
+        self.reached_at_us = None
+        if self.index >= len(self.items):
+            self._finish()
+            return
+        item = self.items[self.index]
+        pos = nav.position()
+        if pos is None:
+            nav.hold_here()
+            return
+        cmd = item.nav_cmd
+        if cmd == RTL:
+            nav.send_command(CMD_RTL)
+            self.phase = P_DONE
+            return
+        if cmd not in _POSITION_ITEMS:  # unsupported DO_* items are skipped
+            self.seq_reached = self.index
+            self.index += 1
+            self._start_item()
+            return
+        alt = self._abs_alt(item)
+        if nav.landed() and cmd != TAKEOFF:
+            h = nav.home_alt()
+            climb = max(alt, (h if h is not None else pos[2]) + nav.p["MIS_TAKEOFF_ALT"])
+            self.phase = P_TAKEOFF_FIRST
+            self._climb_alt = climb
+            nav.set_current(SP_TAKEOFF, pos[0], pos[1], climb, nav.heading())
+        elif cmd == TAKEOFF:
+            self.phase = P_ITEM
+            if nav.landed():
+                nav.set_current(SP_TAKEOFF, pos[0], pos[1], alt, self._yaw_or_heading(item))
+            else:
+                nav.set_current(SP_POSITION, pos[0], pos[1], alt, self._yaw_or_heading(item))
+        elif cmd == LAND:
+            lat, lon = (item.lat, item.lon) if (item.lat or item.lon) else (pos[0], pos[1])
+            self._land_at = (lat, lon, alt)
+            if distance_m(pos[0], pos[1], lat, lon) > self._acc(item):
+                self.phase = P_MOVE_TO_LAND
+                nav.set_current(SP_POSITION, lat, lon, pos[2],
+                                bearing_rad(pos[0], pos[1], lat, lon), acc=self._acc(item))
+            else:
+                self.phase = P_LAND
+                nav.set_current(SP_LAND, lat, lon, alt, self._yaw_or_heading(item))
+        else:
+            self.phase = P_ITEM
+            sp_type = SP_LOITER if cmd == LOITER_UNLIM else SP_POSITION
+            nav.set_current(sp_type, item.lat, item.lon, alt, self._yaw_to(item, pos),
+                            acc=self._acc(item))
+        self._set_next()
+        self.publish_result()
+
+    def _yaw_or_heading(self, item: Any) -> float:
+        return item.yaw if math.isfinite(item.yaw) else self.nav.heading()
+
+    def _set_next(self) -> None:
+        nxt = self.items[self.index + 1] if self.index + 1 < len(self.items) else None
+        if nxt is None or nxt.nav_cmd not in _POSITION_ITEMS or nxt.nav_cmd == TAKEOFF:
+            self.nav.set_next(None)
+            return
+        sp_type = SP_LAND if nxt.nav_cmd == LAND else SP_POSITION
+        self.nav.set_next((sp_type, nxt.lat, nxt.lon, self._abs_alt(nxt)))
+
+    # -- progress -----------------------------------------------------------------------------
+
+    def on_active(self) -> None:
+        nav = self.nav
+        if not nav.armed or self.phase == P_DONE:
+            return
+        pos = nav.position()
+        if pos is None:
+            return
+        item = self.items[self.index]
+        cur = nav.triplet.current
+        alt_ok = abs(pos[2] - cur.alt) <= nav.p["NAV_MC_ALT_RAD"]
+        if self.phase == P_TAKEOFF_FIRST:
+            if alt_ok and not nav.landed():
+                self._start_item()  # the inserted climb is done: now the item itself
+            return
+        if self.phase == P_MOVE_TO_LAND:
+            if distance_m(pos[0], pos[1], cur.lat, cur.lon) <= self._acc(item):
+                self.phase = P_LAND
+                lat, lon, alt = self._land_at
+                nav.set_current(SP_LAND, lat, lon, alt, self._yaw_or_heading(item))
+            return
+        if self.phase == P_LAND:
+            if nav.landed():
+                self.seq_reached = self.index
+                self.index += 1
+                self._finish()
+            return
+        if self.phase == P_ITEM:
+            if item.nav_cmd == TAKEOFF:
+                reached = alt_ok and not nav.landed()
+            else:
+                reached = alt_ok and distance_m(pos[0], pos[1], cur.lat, cur.lon) <= \
+                    self._acc(item)
+            if not reached:
+                return
+            self.seq_reached = self.index
+            self.phase = P_HOLD
+            self.reached_at_us = nav.now_us
+            self.publish_result()
+        if self.phase == P_HOLD:
+            if item.nav_cmd == LOITER_UNLIM or not item.autocontinue:
+                return
+            wait_us = item.time_inside * 1e6 if item.time_inside > 0 else 0
+            if nav.now_us - (self.reached_at_us or 0) < wait_us:
+                return
+            self.index += 1
+            self._start_item()
+
+    def _finish(self) -> None:
+        nav = self.nav
+        self.finished = True
+        self.phase = P_DONE
+        if nav.landed():
+            nav.set_idle()
+        else:
+            nav.hold_here(at_setpoint=True)
+        nav.info("Mission finished" + (", landed" if nav.landed() else ", loitering"))
+        self.publish_result()
