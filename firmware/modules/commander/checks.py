@@ -28,10 +28,16 @@ TELEMETRY_INSTANCES = 4
 
 
 class Failure(NamedTuple):
-    """One reason not to arm; hard failures put the vehicle in STANDBY_ERROR."""
+    """One reason not to arm; hard failures put the vehicle in STANDBY_ERROR.
+
+    ``at_arming`` marks a check made only when arming is requested, not part of being ready:
+    the safety switch. The IO accepts the button only once the FMU says it is ready to arm
+    (IO_ARM_OK), so counting the switch against readiness would lock both out.
+    """
 
     hard: bool
     text: str
+    at_arming: bool = False
 
 
 class VehicleData:
@@ -185,7 +191,8 @@ def preflight_failures(cmd: CommanderModule, nav_state: int, now: int) -> list[F
         out.append(Failure(False, "Preflight Fail: No manual control input"))
     io = data.io.node.last
     if io is not None and not io.status_safety_off and p["CBRK_IO_SAFETY"] != CBRK_IO_SAFETY_KEY:
-        out.append(Failure(False, "Preflight Fail: safety switch engaged, press it first"))
+        out.append(Failure(False, "Preflight Fail: safety switch engaged, press it first",
+                           at_arming=True))
     bat = data.battery.node.last
     if bat is not None:
         if not bat.connected:

@@ -361,7 +361,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
 
     def _publish(self, now: int) -> None:
         armed = self.arming_state == ARMED
-        ready = self.arming_state == STANDBY and not self.failures
+        ready = self.arming_state == STANDBY and not any(not f.at_arming for f in self.failures)
         bat = self.battery_warning
         sig = (self.arming_state, self.nav_state, self.user_nav, self.failsafe_active,
                self.failsafe_action, self.rc_lost, self.dl_lost, ready, bat, self.kill_engaged,
