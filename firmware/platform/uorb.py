@@ -85,6 +85,9 @@ class Broker:
         self.hrt = hrt
         self.registry = registry or default_registry()
         self._nodes: dict[tuple[str, int], TopicNode] = {}
+        #: counts advertisements, so a subscriber to every instance (the logger) can tell
+        #: cheaply whether a new one may have appeared
+        self.advertisements = 0
 
     def node(self, topic: str, instance: int = 0) -> TopicNode:
         """The node for (topic, instance), created (unadvertised) if needed."""
@@ -102,6 +105,7 @@ class Broker:
     def advertise(self, topic: str, instance: int = 0) -> Publication:
         node = self.node(topic, instance)
         node.advertised = True
+        self.advertisements += 1
         return Publication(node)
 
     def advertise_multi(self, topic: str) -> Publication:
@@ -110,6 +114,7 @@ class Broker:
             node = self.node(topic, i)
             if not node.advertised:
                 node.advertised = True
+                self.advertisements += 1
                 return Publication(node)
         raise RuntimeError(f"uORB {topic}: all {ORB_MULTI_MAX_INSTANCES} instances in use")
 

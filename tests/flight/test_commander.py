@@ -222,7 +222,9 @@ def test_arming_refused_with_the_failing_check_reported(rig: Rig, what: str,
     _break(rig, what)
     rig.run(1.0)
     assert not rig.status.pre_flight_checks_pass
-    assert not rig.last("actuator_armed").ready_to_arm
+    # The safety switch is checked at arming only: the IO takes the button press only while
+    # the FMU reports ready to arm (IO_ARM_OK).
+    assert rig.last("actuator_armed").ready_to_arm == (what == "safety_on")
     assert rig.arm() == TEMPORARILY_REJECTED
     assert rig.status.arming_state != ARMED
     errors = [t for _, sev, mod, t in rig.platform.dmesg if sev == 3 and mod == "commander"]

@@ -189,6 +189,7 @@ class Logger(WorkItem):
             self.topics.append(row)
         self._subs: list[_TopicSub] = []
         self._known: set[tuple[str, int]] = set()
+        self._seen_advertisements = -1
         for row in self.topics:
             self._subscribe(row, 0)
         self._log_sub = Subscription(orb, "log_message") if "log_message" in reg.topics else None
@@ -327,6 +328,9 @@ class Logger(WorkItem):
 
     def _discover_instances(self) -> None:
         orb = self.platform.orb
+        if orb.advertisements == self._seen_advertisements:
+            return  # nothing new advertised since the last look
+        self._seen_advertisements = orb.advertisements
         for row in self.topics:
             for i in range(1, ORB_MULTI_MAX_INSTANCES):
                 if (row.name, i) not in self._known and orb.exists(row.name, i):
