@@ -12,6 +12,9 @@ Ports that leave the board (see board/wiring.py):
 * ``power`` (in): ``(volts, amps)`` at the power module, which the ADC pins see through the
   module's dividers.
 * ``io_link`` (USART6), ``telem1``, ``telem2``, ``console``: UARTs.
+* ``udp_in`` / ``udp_out``: the FMU's network interface as PX4 SITL has one, carrying whole
+  datagrams ``(fmu_port, remote_port, bytes)``; the host side (hil/mavlink_bridge.py) owns the
+  real sockets. The mavlink module binds its UDP instances in ``udp_handlers``.
 
 Firmware start-up (``firmware=``):
 
@@ -163,6 +166,15 @@ class FmuV2Board(Board):
                 self.expose_uart(u.port, self.uarts[u.name])
         self.expose_input("truth", self._on_truth)
         self.expose_input("power", self._on_power)
+        self.udp_out = self.expose_output("udp_out")
+        self.udp_handlers: dict[int, Any] = {}
+        self.expose_input("udp_in", self._on_udp)
+
+    def _on_udp(self, t_ns: int, payload: Any) -> None:
+        fmu_port, remote_port, data = payload
+        handler = self.udp_handlers.get(fmu_port)
+        if handler is not None:
+            handler(t_ns, remote_port, data)
 
     def _on_truth(self, t_ns: int, record: Any) -> None:
         self.env.update_from_truth(t_ns, dict(zip(TRUTH_KEYS, record)))
@@ -295,6 +307,24 @@ class FmuV2Board(Board):
         self._ctl_shell.output = out.append
         status = self._ctl_shell.execute(line)
         return status, "".join(out)
+
+    def ctl_mavlink(self, what: str = "links") -> list[dict[str, Any]]:
+        """Counters of the mavlink links (tests, tools)."""
+        mod = self.system.modules.get("mavlink") if self.system is not None else None
+        if mod is None:
+            return []
+        keys = ("rx_messages", "rx_errors", "rx_unknown", "rx_unhandled", "rx_not_for_us",
+                "rx_unsigned_rejected", "tx_messages", "tx_dropped", "gcs_heartbeat_us")
+        out = []
+        for inst in mod.instances:
+            d = {k: getattr(inst, k) for k in keys}
+            d["rx_lost"] = getattr(inst.transport, "rx_lost", 0)
+            d["runs"] = inst.run_count
+            d["busy_ns"] = inst.busy_ns_total
+            d["max_cost_ns"] = getattr(inst, "max_cost_ns", 0)
+            d["port"] = getattr(inst.transport, "local_port", None) or inst.transport.device
+            out.append(d)
+        return out
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)

@@ -370,6 +370,13 @@ class ModuleRegistry:
         if self.system is None:
             raise ModuleError("module registry has no system")
         if self.is_running(name):
+            inst = self._instances[name]
+            if getattr(inst, "MULTI_INSTANCE", False):  # mavlink: one more link
+                try:
+                    return int(inst.start_instance(list(args)))  # type: ignore[attr-defined]
+                except UsageError as exc:
+                    self._err(f"{name}: {exc}")
+                    return 1
             self._err(f"{name}: already running")
             return 1
         try:

@@ -1,0 +1,189 @@
+"""Commands: COMMAND_LONG / COMMAND_INT to ``vehicle_command``, acks back as COMMAND_ACK.
+
+What the link itself can answer (message requests and intervals, capabilities, protocol
+version) is answered here at once with an ack. Everything else is published on
+``vehicle_command`` (``from_external`` set, the sender as source) for the commander, navigator
+and the others; their ``vehicle_command_ack`` answers go out on every link as COMMAND_ACK (PX4
+sends external acks on all links: the GCS may have sent on any of them).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from pymavlink.dialects.v20 import common as mav
+
+if TYPE_CHECKING:
+    from firmware.modules.mavlink.instance import MavlinkInstance
+
+__all__ = ["CAPABILITIES", "CommandService", "autopilot_version", "send_protocol_version"]
+
+CAPABILITIES = (mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mav.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+                | mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT | mav.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | mav.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                | mav.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+                | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+                | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+                | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+#: the FMUv2's USB ids (3D Robotics), as PX4 reports them
+VENDOR_ID, PRODUCT_ID = 0x26AC, 0x0011
+_GLOBAL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                            mav.MAV_FRAME_GLOBAL_INT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                            mav.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+                            mav.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
+
+
+def _version_word(version: str) -> int:
+    """``"fmu-hil 1.2.3"`` -> PX4's (major, minor, patch, FIRMWARE_VERSION_TYPE_OFFICIAL)."""
+    nums = [int(x) for x in version.split()[-1].split(".")[:3] if x.isdigit()] + [0, 0, 0]
+    return (nums[0] << 24) | (nums[1] << 16) | (nums[2] << 8) | 255
+
+
+def autopilot_version(inst: MavlinkInstance) -> Any:
+    system = inst.system
+    git = (system.git_hash or "").encode()[:8].ljust(8, b"\0")
+    uid = int.from_bytes(system.board_name.encode()[:8].ljust(8, b"\0"), "little")
+    return mav.MAVLink_autopilot_version_message(
+        CAPABILITIES, _version_word(system.version), _version_word(system.version),
+        0x070A00FF, 2, list(git), list(git), [0] * 8, VENDOR_ID, PRODUCT_ID, uid)
+
+
+PROTOCOL_VERSION_ID, PROTOCOL_VERSION_CRC_EXTRA = 300, 217
+
+
+def send_protocol_version(inst: MavlinkInstance) -> None:
+    """PROTOCOL_VERSION (#300): version 2.0, supporting 1.0 to 2.0. pymavlink's dialects do not
+    define it, so it is packed here: three uint16 and two 8-byte hashes (zeros: no spec hash)."""
+    payload = struct.pack("<HHH8s8s", 200, 100, 200, bytes(8), bytes(8))
+    msg = mav.MAVLink_message(PROTOCOL_VERSION_ID, "PROTOCOL_VERSION")
+    inst.send_packed(msg, PROTOCOL_VERSION_CRC_EXTRA, payload)
+
+
+class CommandService:
+    def __init__(self, inst: MavlinkInstance) -> None:
+        self.inst = inst
+        self._pub = None
+        self._cmd = inst.platform.orb.new("vehicle_command")
+        self._ack_sub = inst.module.subscribe("vehicle_command_ack")
+        self._ack_sub.copy()  # only acks published from now on
+        self.forwarded = 0
+        self.local: dict[int, Callable[[Any], int]] = {
+            mav.MAV_CMD_REQUEST_MESSAGE: self._request_message,
+            mav.MAV_CMD_SET_MESSAGE_INTERVAL: self._set_interval,
+            mav.MAV_CMD_GET_MESSAGE_INTERVAL: self._get_interval,
+            mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._capabilities,
+            mav.MAV_CMD_REQUEST_PROTOCOL_VERSION: self._protocol_version,
+        }
+
+    def handlers(self) -> dict[int, Callable[[Any], None]]:
+        return {mav.MAVLINK_MSG_ID_COMMAND_LONG: self._on_long,
+                mav.MAVLINK_MSG_ID_COMMAND_INT: self._on_int}
+
+    # -- incoming -------------------------------------------------------------------------------
+
+    def _on_long(self, m: Any) -> None:
+        self._handle(m, m.command, (m.param1, m.param2, m.param3, m.param4),
+                     float(m.param5), float(m.param6), m.param7, m.confirmation)
+
+    def _on_int(self, m: Any) -> None:
+        if m.frame in _GLOBAL_FRAMES:
+            x = m.x / 1e7 if m.x != 0x7FFFFFFF else math.nan
+            y = m.y / 1e7 if m.y != 0x7FFFFFFF else math.nan
+        else:
+            x, y = float(m.x), float(m.y)
+        self._handle(m, m.command, (m.param1, m.param2, m.param3, m.param4), x, y, m.z, 0)
+
+    def _handle(self, m: Any, command: int, p: tuple, p5: float, p6: float, p7: float,
+                confirmation: int) -> None:
+        inst = self.inst
+        src_sys, src_comp = m.get_srcSystem(), m.get_srcComponent()
+        if m.target_component not in (0, inst.compid, mav.MAV_COMP_ID_ALL):
+            inst.rx_not_for_us += 1
+            return  # for another component of this system (a camera, a gimbal)
+        local = self.local.get(command)
+        if local is not None:
+            self._local_p = (*p, p5, p6, p7)
+            result = local(m)
+            inst.ack_command(command, result, src_sys, src_comp)
+            return
+        c = self._cmd
+        c.timestamp = inst.time_us()
+        c.param1, c.param2, c.param3, c.param4 = p
+        c.param5, c.param6, c.param7 = p5, p6, p7
+        c.command = command
+        c.target_system = m.target_system
+        c.target_component = m.target_component
+        c.source_system = src_sys
+        c.source_component = src_comp
+        c.confirmation = confirmation & 0xFF
+        c.from_external = True
+        if self._pub is None:
+            self._pub = inst.module.advertise("vehicle_command")
+        self._pub.publish(c)
+        self.forwarded += 1
+
+    # -- answered here ----------------------------------------------------------------------
+
+    _local_p: tuple = ()
+
+    def _request_message(self, m: Any) -> int:
+        from firmware.modules.mavlink.services import REQUESTABLE
+
+        msg_id = int(self._local_p[0])
+        inst = self.inst
+        if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+            inst.send(autopilot_version(inst))
+        elif msg_id == PROTOCOL_VERSION_ID:
+            send_protocol_version(inst)
+        elif msg_id in REQUESTABLE:
+            REQUESTABLE[msg_id](inst)
+        elif not inst.send_stream_once(msg_id):
+            return mav.MAV_RESULT_UNSUPPORTED if inst.stream_interval_us(msg_id) is None \
+                else mav.MAV_RESULT_TEMPORARILY_REJECTED
+        return mav.MAV_RESULT_ACCEPTED
+
+    def _set_interval(self, m: Any) -> int:
+        from firmware.modules.mavlink.streams import DEFAULT_RATES, STREAM_BY_ID
+
+        msg_id, interval = int(self._local_p[0]), self._local_p[1]
+        sdef = STREAM_BY_ID.get(msg_id)
+        if sdef is None:
+            return mav.MAV_RESULT_UNSUPPORTED
+        if interval < 0:
+            rate = 0.0
+        elif interval == 0:
+            rate = DEFAULT_RATES[self.inst.mode].get(sdef.name, 0.0)
+        else:
+            rate = 1e6 / interval
+        self.inst.set_stream_rate(sdef.name, rate)
+        return mav.MAV_RESULT_ACCEPTED
+
+    def _get_interval(self, m: Any) -> int:
+        msg_id = int(self._local_p[0])
+        interval = self.inst.stream_interval_us(msg_id)
+        self.inst.send(mav.MAVLink_message_interval_message(msg_id, interval if interval
+                                                            is not None else 0))
+        return mav.MAV_RESULT_ACCEPTED
+
+    def _capabilities(self, m: Any) -> int:
+        self.inst.send(autopilot_version(self.inst))
+        return mav.MAV_RESULT_ACCEPTED
+
+    def _protocol_version(self, m: Any) -> int:
+        send_protocol_version(self.inst)
+        return mav.MAV_RESULT_ACCEPTED
+
+    # -- acks from the vehicle ----------------------------------------------------------------
+
+    def update(self, now_us: int) -> None:
+        while True:
+            a = self._ack_sub.update()
+            if a is None:
+                return
+            if a.from_external:
+                self.inst.ack_command(int(a.command), int(a.result), int(a.target_system),
+                                      int(a.target_component), int(a.result_param1),
+                                      int(a.result_param2))

@@ -1,0 +1,123 @@
+"""Commands: to vehicle_command and the commander, acks back; the ones the link answers itself."""
+
+import math
+
+import pytest
+from pymavlink.dialects.v20 import common as mav
+
+from hil.gcs import GcsTimeout
+
+
+def _text(m):
+    return m.text if isinstance(m.text, str) else m.text.decode("latin-1")
+
+
+@pytest.fixture(scope="module")
+def commander(session):
+    session.shell("commander start")
+    session.gcs.step(0.5)
+    return session
+
+
+def test_arm_denied_preflight_with_a_reason(commander):
+    gcs = commander.gcs
+    mark = gcs.mark()
+    ack = gcs.arm()
+    assert ack.result in (mav.MAV_RESULT_TEMPORARILY_REJECTED, mav.MAV_RESULT_DENIED)
+    assert ack.target_system == 255 and ack.target_component == gcs.mav.srcComponent
+    gcs.step(0.1)
+    reasons = [_text(m) for m in gcs.messages("STATUSTEXT", mark)]
+    assert any("Preflight" in r or "rming" in r for r in reasons), reasons
+    assert not gcs.last["HEARTBEAT"].base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
+
+
+def test_force_arm_then_disarm(commander):
+    gcs = commander.gcs
+    assert gcs.arm(force=True).result == mav.MAV_RESULT_ACCEPTED
+    hb = gcs.wait_message("HEARTBEAT", lambda m: m.get_srcSystem() == 1
+                          and m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+    assert hb.system_status in (mav.MAV_STATE_ACTIVE, mav.MAV_STATE_CRITICAL)
+    assert gcs.disarm(force=True).result == mav.MAV_RESULT_ACCEPTED
+
+
+def test_command_int_reaches_vehicle_command(commander):
+    gcs = commander.gcs
+    before = (commander.topic("vehicle_command") or {}).get("_count", 0)
+    gcs.send(mav.MAVLink_command_int_message(1, 1, mav.MAV_FRAME_GLOBAL_INT,
+                                             mav.MAV_CMD_DO_REPOSITION, 0, 0, -1, 1, 0,
+                                             float("nan"), 473977420, 85455940, 500.0))
+    gcs.wait_message("COMMAND_ACK", lambda m: m.command == mav.MAV_CMD_DO_REPOSITION)
+    cmd = commander.topic("vehicle_command")
+    assert cmd["_count"] == before + 1 and cmd["command"] == mav.MAV_CMD_DO_REPOSITION
+    assert math.isclose(cmd["param5"], 47.397742, abs_tol=1e-7)
+    assert math.isclose(cmd["param6"], 8.545594, abs_tol=1e-7)
+    assert cmd["param7"] == 500.0 and cmd["from_external"] and cmd["source_system"] == 255
+
+
+def test_wrongly_addressed_command_ignored(session):
+    gcs = session.gcs
+    before = session.counters()["rx_not_for_us"]
+    mark = gcs.mark()
+    gcs.send(mav.MAVLink_command_long_message(42, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                              1, 0, 0, 0, 0, 0, 0))
+    gcs.step(0.2)
+    assert not gcs.messages("COMMAND_ACK", mark)
+    assert session.counters()["rx_not_for_us"] == before + 1
+
+
+def test_autopilot_version_and_protocol_version_on_request(session):
+    gcs = session.gcs
+    mark = gcs.mark()
+    ack = gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    av = gcs.wait_message("AUTOPILOT_VERSION", since=mark)
+    assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    assert not av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    ack = gcs.command_long(mav.MAV_CMD_REQUEST_PROTOCOL_VERSION, [1])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    pv = gcs.wait_message("UNKNOWN_300", since=mark)  # not in pymavlink's dialects
+    buf = bytes(pv.get_msgbuf())
+    payload = buf[10:10 + buf[1]].ljust(22, b"\0")  # MAVLink 2 strips trailing zeros
+    assert payload == bytes([200, 0, 100, 0, 200, 0]) + bytes(16)
+    assert gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [9999]).result == \
+        mav.MAV_RESULT_UNSUPPORTED
+
+
+def test_set_message_interval_changes_a_stream(session):
+    gcs = session.gcs
+    ack = gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL,
+                           [mav.MAVLINK_MSG_ID_SYS_STATUS, 100_000])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    mark = gcs.mark()
+    gcs.step(1.0)
+    assert 9 <= len(gcs.messages("SYS_STATUS", mark)) <= 11
+    gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL, [mav.MAVLINK_MSG_ID_SYS_STATUS, 0])
+    mark = gcs.mark()
+    gcs.step(2.0)
+    assert 1 <= len(gcs.messages("SYS_STATUS", mark)) <= 3  # back to the default 1 Hz
+    assert gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL, [9999, 1000]).result == \
+        mav.MAV_RESULT_UNSUPPORTED
+
+
+def test_timesync_and_ping_answered(session):
+    gcs = session.gcs
+    mark = gcs.mark()
+    gcs.send(mav.MAVLink_timesync_message(0, 123456789))
+    ts = gcs.wait_message("TIMESYNC", lambda m: m.ts1 == 123456789, since=mark)
+    assert ts.tc1 > 0
+    gcs.send(mav.MAVLink_ping_message(42, 7, 0, 0))
+    ping = gcs.wait_message("PING", since=mark)
+    assert (ping.seq, ping.target_system) == (7, 255)
+
+
+def test_no_ack_means_timeout_not_hang(session):
+    gcs = session.gcs
+    t0 = session.orch.t_ns
+    gcs.target_system = 42  # nobody answers for another vehicle
+    try:
+        with pytest.raises(GcsTimeout):
+            gcs.command_long(mav.MAV_CMD_COMPONENT_ARM_DISARM, [1], timeout_s=0.3, retries=0)
+    finally:
+        gcs.target_system = 1
+    assert session.orch.t_ns - t0 <= 400_000_000
