@@ -127,11 +127,19 @@ class Pin:
 
     def high(self, t_ns: int | None = None) -> None:
         """Drive the pin high (``set(1)``)."""
-        self._drive(1, t_ns)
+        if t_ns is None:  # the per-sample data-ready path: skip _drive's checks
+            k = self._gpio.kernel
+            self._apply(1, k.now_ns + k.busy_ns)
+        else:
+            self._drive(1, t_ns)
 
     def low(self, t_ns: int | None = None) -> None:
         """Drive the pin low (``set(0)``)."""
-        self._drive(0, t_ns)
+        if t_ns is None:
+            k = self._gpio.kernel
+            self._apply(0, k.now_ns + k.busy_ns)
+        else:
+            self._drive(0, t_ns)
 
     def release(self, t_ns: int | None = None) -> None:
         """Stop driving: the pin falls back to its pull level (open drain, tri-state)."""
@@ -151,17 +159,32 @@ class Pin:
         if t_ns <= ctx:
             self._apply(level, t_ns)
         else:
-            kernel.call_at(t_ns, self._apply, level, t_ns, priority=PRIO_HW)
+            kernel.post(t_ns, PRIO_HW, self._apply, (level, t_ns))  # checked above
 
     def _apply(self, level: int | None, t_ns: int) -> None:
+        """The level changes at ``t_ns`` (>= now): listeners, then the EXTI edge.
+
+        This runs twice per MPU6000 sample (8 kHz), so the EXTI part of :meth:`Gpio._edge` is
+        inlined here and the listener snapshot is only taken when there are listeners.
+        """
         self._driven = level
         new = level if level is not None else (1 if self.pull == "up" else 0)
         if new == self._level:
             return  # same level again: not an edge
         self._level = new
-        for listener in tuple(self._listeners):
-            listener(self, t_ns, new)
-        self._gpio._edge(self, t_ns, new)
+        if self._listeners:
+            for listener in tuple(self._listeners):
+                listener(self, t_ns, new)
+        gpio = self._gpio
+        line = gpio.exti[self.number]
+        if line.pin is not self or not (line.rising if new else line.falling):
+            return
+        if line.pending:
+            line.coalesced += 1
+            return
+        line.pending = True
+        # kernel.post: t_ns is the edge time, never before now (call_at's checks are moot).
+        gpio.kernel.post(t_ns, PRIO_ISR, gpio._fire, (line, self, t_ns))
 
     def on_change(self, listener: PinListener) -> None:
         """Call ``listener(pin, t_ns, level)`` synchronously on every level change.
@@ -277,6 +300,10 @@ class Gpio:
         line.rising = line.falling = False
 
     def _edge(self, pin: Pin, t_ns: int, level: int) -> None:
+        """An edge of ``pin`` at ``t_ns``: set the line's pending bit and queue its handler.
+
+        :meth:`Pin._apply` carries an inlined copy of this (the hot path); keep them alike.
+        """
         line = self.exti[pin.number]
         if line.pin is not pin or not (line.rising if level else line.falling):
             return
@@ -284,7 +311,7 @@ class Gpio:
             line.coalesced += 1
             return
         line.pending = True
-        self.kernel.call_at(t_ns, self._fire, line, pin, t_ns, priority=PRIO_ISR)
+        self.kernel.post(t_ns, PRIO_ISR, self._fire, (line, pin, t_ns))
 
     def _fire(self, line: ExtiLine, pin: Pin, t_ns: int) -> None:
         line.pending = False
@@ -292,4 +319,11 @@ class Gpio:
         if handler is None:
             return
         line.fired += 1
-        call_in_isr(self.kernel, handler, pin, t_ns)
+        # call_in_isr, inlined: this runs for every data-ready edge.
+        k = self.kernel
+        prev = k.in_isr
+        k.in_isr = True
+        try:
+            handler(pin, t_ns)
+        finally:
+            k.in_isr = prev

@@ -260,16 +260,18 @@ class Kernel:
         q = self._queue
         pop = _heappop
         n = 0
+        fn = None
         try:
             while q and q[0][0] <= until_ns:
-                entry = pop(q)
-                fn = entry[3]
+                # One UNPACK_SEQUENCE instead of three subscripts: ~30k events per virtual
+                # second on an FMU, so the loop's own bytecode count matters.
+                t_ns, _prio, _seq, fn, args = pop(q)
                 if fn is None:
                     continue
-                self.now_ns = entry[0]
+                self.now_ns = t_ns
                 self.busy_ns = 0
                 n += 1
-                fn(*entry[4])
+                fn(*args)
                 if self._stop:
                     self.events_run += n
                     return

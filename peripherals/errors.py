@@ -52,48 +52,65 @@ class ImuErrorModel:
         # Extra errors a test or a fault sets: a bias step, stuck output, saturation.
         self.extra_bias = (0.0, 0.0, 0.0)
         self.noise_scale = 1.0
-        self._buf = np.empty(0)
+        # Normal draws as a Python list: indexing a list is several times cheaper than slicing
+        # a numpy array, and the values are the same doubles (drawn in the same blocks).
+        self._buf: list[float] = []
         self._pos = 0
 
-    def _normals(self, n: int) -> np.ndarray:
-        # Draw in blocks: one numpy call per 4096 samples instead of one per sample.
-        if self._pos + n > len(self._buf):
-            self._buf = self.rng.standard_normal(4096 * 3)
-            self._pos = 0
-        out = self._buf[self._pos:self._pos + n]
-        self._pos += n
-        return out
+    def _normals(self, n: int) -> list[float]:
+        """The next ``n`` N(0, 1) draws. Drawn in blocks of 4096 * 3: one numpy call per 4096
+        samples instead of one per sample (a new block whenever the rest is too short)."""
+        pos = self._pos
+        if pos + n > len(self._buf):
+            self._buf = self.rng.standard_normal(4096 * 3).tolist()
+            pos = 0
+        self._pos = pos + n
+        return self._buf[pos:pos + n]
 
     def apply(self, t_ns: int, true: tuple[float, float, float], odr_hz: float,
               temperature_c: float = 25.0) -> tuple[float, float, float]:
+        """The reading of one sample at ``t_ns`` for the physical value ``true``.
+
+        Runs per sample for the ST chips (thousands per virtual second), so the block buffer is
+        read inline; the arithmetic and the order of the draws (drift first, then noise) are
+        what they always were, so results are bit for bit the same.
+        """
         p = self.p
         x, y, z = true
         c = self.cross
         sx, sy, sz = self.scale
-        vx = sx * x + c[0][1] * y + c[0][2] * z
-        vy = c[1][0] * x + sy * y + c[1][2] * z
-        vz = c[2][0] * x + c[2][1] * y + sz * z
+        c0, c1, c2 = c
+        vx = sx * x + c0[1] * y + c0[2] * z
+        vy = c1[0] * x + sy * y + c1[2] * z
+        vz = c2[0] * x + c2[1] * y + sz * z
         sigma = p.noise_density * math.sqrt(odr_hz * 0.5) * self.noise_scale
-        if p.bias_instability and self._last_t_ns is not None:
-            dt = (t_ns - self._last_t_ns) * 1e-9
+        d = self.drift
+        last_t = self._last_t_ns
+        if p.bias_instability and last_t is not None:
+            dt = (t_ns - last_t) * 1e-9
             if dt > 0:
                 step = p.bias_instability * math.sqrt(dt)
-                n = self._normals(3)
-                d = self.drift
-                # float(): numpy scalars would make every later operation slower.
-                d[0] += float(step * n[0])
-                d[1] += float(step * n[1])
-                d[2] += float(step * n[2])
+                buf, pos = self._buf, self._pos
+                if pos + 3 > len(buf):
+                    buf = self._buf = self.rng.standard_normal(4096 * 3).tolist()
+                    pos = 0
+                self._pos = pos + 3
+                d[0] += step * buf[pos]
+                d[1] += step * buf[pos + 1]
+                d[2] += step * buf[pos + 2]
         self._last_t_ns = t_ns
         b = self.bias
         e = self.extra_bias
-        d = self.drift
         tc = p.temp_coeff * (temperature_c - 25.0)
         if sigma:
-            n0, n1, n2 = self._normals(3).tolist()
-            return (vx + b[0] + e[0] + d[0] + tc + sigma * n0,
-                    vy + b[1] + e[1] + d[1] + tc + sigma * n1,
-                    vz + b[2] + e[2] + d[2] + tc + sigma * n2)
+            buf, pos = self._buf, self._pos
+            if pos + 3 > len(buf):
+                buf = self._buf = self.rng.standard_normal(4096 * 3).tolist()
+                pos = 0
+            self._pos = pos + 3
+            return (vx + b[0] + e[0] + d[0] + tc + sigma * buf[pos],
+                    vy + b[1] + e[1] + d[1] + tc + sigma * buf[pos + 1],
+                    vz + b[2] + e[2] + d[2] + tc + sigma * buf[pos + 2])
         return (vx + b[0] + e[0] + d[0] + tc, vy + b[1] + e[1] + d[1] + tc,
                 vz + b[2] + e[2] + d[2] + tc)
 

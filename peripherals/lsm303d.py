@@ -210,6 +210,11 @@ class Lsm303d(StSpiTarget):
             regs.hook(reg, on_read=partial(self._r_out, self.accel, i))
         for i, reg in enumerate(_OUT_M):
             regs.hook(reg, on_read=partial(self._r_out, self.mag, i))
+        # The same reads, a whole burst at a time (StSpiTarget._burst_read).
+        for a in range(0x28, 0x2E):
+            self._out_blocks[a] = (0x28, 0x2D, self.accel)
+        for a in range(0x08, 0x0E):
+            self._out_blocks[a] = (0x08, 0x0D, self.mag)
         for pin in (int1_pin, int2_pin):
             if pin is not None:
                 pin.low()
@@ -231,14 +236,20 @@ class Lsm303d(StSpiTarget):
         if faults.saturate:
             raw = (32767, 32767, 32767)
         else:
-            regs, env, err = self.regs, self.env, self.accel_errors
-            bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[regs.get("CTRL2.ABW")])
+            env, err = self.env, self.accel_errors
+            ctrl2 = self.regs.values[0x21]
+            bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> 6])  # CTRL2.ABW
             err.extra_bias = faults.bias_step
-            a = err.apply(t_ns, rotate(self.rotation, env.accel_m_s2), 2.0 * bw,
-                          env.board_temperature_c)
-            afs = regs.get("CTRL2.AFS")
+            rot = self.rotation
+            a = err.apply(t_ns, env.accel_m_s2 if rot is None else rotate(rot, env.accel_m_s2),
+                          2.0 * bw, env.board_temperature_c)
+            afs = (ctrl2 >> 3) & 7  # CTRL2.AFS
             lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0
-            raw = (to_int16(a[0] / lsb), to_int16(a[1] / lsb), to_int16(a[2] / lsb))
+            # to_int16, inlined (1600 samples per virtual second).
+            x, y, z = round(a[0] / lsb), round(a[1] / lsb), round(a[2] / lsb)
+            raw = (32767 if x > 32767 else (-32768 if x < -32768 else x),
+                   32767 if y > 32767 else (-32768 if y < -32768 else y),
+                   32767 if z > 32767 else (-32768 if z < -32768 else z))
         self._last_accel = raw
         return raw
 
@@ -355,30 +366,46 @@ class Lsm303d(StSpiTarget):
         return self.accel.fifo_mode != FIFO_BYPASS
 
     def _refresh_pins(self, t_ns: int) -> None:
-        if self.int1_pin is None and self.int2_pin is None:
+        """Drive INT1/INT2 from the routed sources and arm the next time a level can change.
+
+        Routing (CTRL3 on INT1: DRDY_A, DRDY_M, EMPTY; CTRL4 on INT2: DRDY_A, DRDY_M, Overrun,
+        FTH) is evaluated with plain bit tests because this runs on every SPI access. A pin that
+        is off can turn on at its sources' next sample; the EMPTY source (on when the FIFO is
+        empty) can change at the accel's next sample whatever the level.
+        """
+        int1, int2 = self.int1_pin, self.int2_pin
+        if int1 is None and int2 is None:
             return
-        regs, acc, mag, faults = self.regs, self.accel, self.mag, self.faults
+        v = self.regs.values
+        acc, mag, faults = self.accel, self.mag, self.faults
         dead = faults.drdy_stuck or faults.absent
-        active = 1 if regs.get("INT_CTRL_M.IEA") else 0
-        fifo = acc.fifo_src(regs.get("FIFO_CTRL.FTH"))
-        nxt: list[int | None] = []
-        # (pin, [(enabled, true now, channel that can change it, 'empty-like' source)])
-        c3, c4 = regs["CTRL3"], regs["CTRL4"]
-        for pin, sources in (
-                (self.int1_pin, ((c3 & 0x04, acc.da, acc, False), (c3 & 0x02, mag.da, mag, False),
-                                 (c3 & 0x01, fifo & 0x20, acc, True))),
-                (self.int2_pin, ((c4 & 0x08, acc.da, acc, False), (c4 & 0x04, mag.da, mag, False),
-                                 (c4 & 0x02, fifo & 0x40, acc, False),
-                                 (c4 & 0x01, fifo & 0x80, acc, False)))):
-            if pin is None:
-                continue
-            enabled = [s for s in sources if s[0]]
-            on = 0 if dead else int(any(s[1] for s in enabled))
-            self._set_pin(pin, on if active else 1 - on, t_ns)
-            if dead:
-                continue
-            for _en, _now, ch, empty_like in enabled:
-                if not on or empty_like:
-                    nxt.append(ch.next_sample_ns())
-        times = [t for t in nxt if t is not None]
-        self._arm(min(times) if times else None)
+        active = v[0x12] & 0x08                 # INT_CTRL_M.IEA: active high
+        fifo = acc.fifo_src(v[0x2E] & 0x1F)     # FIFO_CTRL.FTH
+        c3, c4 = v[0x22], v[0x23]               # CTRL3, CTRL4
+        acc_next = mag_next = False
+        if int1 is not None:
+            on = 0 if dead else int(bool((c3 & 0x04 and acc.da) or (c3 & 0x02 and mag.da)
+                                         or (c3 & 0x01 and fifo & 0x20)))
+            self._set_pin(int1, on if active else 1 - on, t_ns)
+            if not dead:
+                if not on:
+                    acc_next = bool(c3 & 0x05)
+                    mag_next = bool(c3 & 0x02)
+                elif c3 & 0x01:
+                    acc_next = True
+        if int2 is not None:
+            on = 0 if dead else int(bool((c4 & 0x08 and acc.da) or (c4 & 0x04 and mag.da)
+                                         or (c4 & 0x02 and fifo & 0x40)
+                                         or (c4 & 0x01 and fifo & 0x80)))
+            self._set_pin(int2, on if active else 1 - on, t_ns)
+            if not dead and not on:
+                acc_next = acc_next or bool(c4 & 0x0B)
+                mag_next = mag_next or bool(c4 & 0x04)
+        t_acc = acc.next_sample_ns() if acc_next else None
+        t_mag = mag.next_sample_ns() if mag_next else None
+        if t_acc is None:
+            self._arm(t_mag)
+        elif t_mag is None:
+            self._arm(t_acc)
+        else:
+            self._arm(min(t_acc, t_mag))

@@ -132,6 +132,10 @@ class RegisterFile:
             self.by_name[reg.name] = reg
             for f in reg.fields:
                 self._fields[f"{reg.name}.{f.name}"] = (reg, f)
+        # "REG.FIELD" -> (address, mask, lsb): get() runs per sample in the ST models, and
+        # Field.mask is a computed property.
+        self._field_bits: dict[str, tuple[int, int, int]] = {
+            path: (reg.addr, f.mask, f.lsb) for path, (reg, f) in self._fields.items()}
         # Per-address fast tables for the hot paths.
         self._readable = bytearray(size)  # 1 = plain read (no hook, not write-only/rc)
         for addr, reg in self.by_addr.items():
@@ -161,13 +165,12 @@ class RegisterFile:
 
     def get(self, path: str) -> int:
         """A field's value: ``regs.get("GYRO_CONFIG.FS_SEL")``."""
-        reg, f = self._fields[path]
-        return (self.values[reg.addr] & f.mask) >> f.lsb
+        addr, mask, lsb = self._field_bits[path]
+        return (self.values[addr] & mask) >> lsb
 
     def set(self, path: str, value: int) -> None:
-        reg, f = self._fields[path]
-        a = reg.addr
-        self.values[a] = (self.values[a] & ~f.mask & 0xFF) | ((value << f.lsb) & f.mask)
+        a, mask, lsb = self._field_bits[path]
+        self.values[a] = (self.values[a] & ~mask & 0xFF) | ((value << lsb) & mask)
 
     def addr(self, name: str) -> int:
         return self.by_name[name].addr

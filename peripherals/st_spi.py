@@ -165,47 +165,60 @@ class SampleChannel:
         return self.sample_time(self.k + 1) if self.odr_mhz else None
 
     def advance(self, t_ns: int) -> int:
-        """Latch every sample due at or before ``t_ns``; returns how many were due."""
+        """Latch every sample due at or before ``t_ns``; returns how many were due.
+
+        ``sample_fn`` is called once per observable sample in increasing ``k`` (the samples
+        pushed into the FIFO, then the newest if it was not among them): the error models draw
+        their noise in that order, so the order is part of the behaviour.
+        """
         odr = self.odr_mhz
-        if not odr or t_ns <= self.t0_ns:
+        t0 = self.t0_ns
+        if not odr or t_ns <= t0:
             return 0
-        n = (t_ns - self.t0_ns) * odr // 10**12 - self.k
+        n = (t_ns - t0) * odr // 10**12 - self.k
         if n <= 0:
             return 0
-        if self.limit is not None:
-            n = min(n, self.limit)
-            self.limit -= n
+        limit = self.limit
+        if limit is not None:
+            n = min(n, limit)
+            self.limit = limit - n
         first, last = self.k + 1, self.k + n
         self.k = last
         mode = self.fifo_mode
+        fifo = self.fifo
+        depth = self.fifo_depth
+        # Pushed samples: k in [p0, p1), contiguous and all <= last.
         if mode == FIFO_FIFO and not self.fifo_stopped:
-            pushes = range(first, first + min(n, self.fifo_depth - len(self.fifo)))
+            p0, p1 = first, first + min(n, depth - len(fifo))
         elif mode == FIFO_STREAM:
-            pushes = range(last - min(n, self.fifo_depth) + 1, last + 1)
+            p0, p1 = last - min(n, depth) + 1, last + 1
         else:
-            pushes = range(0)
-        values = {}
-        for k in sorted(set(pushes) | {last}):
-            values[k] = self.sample_fn(self.sample_time(k))
-        if pushes:
-            fifo = self.fifo
-            for k in pushes:
-                fifo.append(values[k])
-            while len(fifo) > self.fifo_depth:
+            p0 = p1 = 0
+        sample_fn = self.sample_fn
+        if p1 > p0:
+            # sample_time(k), inlined: t0 + ceil(k * 1e12 / odr).
+            pushed = [sample_fn(t0 - (-k * 10**12 // odr)) for k in range(p0, p1)]
+            v = pushed[-1] if p1 - 1 == last else sample_fn(t0 - (-last * 10**12 // odr))
+            fifo.extend(pushed)
+            while len(fifo) > depth:
                 fifo.popleft()
-            if len(fifo) >= self.fifo_depth:
+            if len(fifo) >= depth:
                 self.fifo_ovrn = True
                 if mode == FIFO_FIFO:
                     self.fifo_stopped = True
-        v = values[last]
+        else:
+            v = sample_fn(t0 - (-last * 10**12 // odr))
         self.latest = list(v)
         en = self.axes
         self.ovr |= (self.da | (0b111 if n > 1 else 0)) & en
         self.da |= en
         out, halves, bdu = self.out, self._halves, self.bdu
-        for j in range(3):
-            if en >> j & 1 and not (bdu and halves[j]):
-                out[j] = v[j]
+        if en == 0b111 and not (bdu and (halves[0] or halves[1] or halves[2])):
+            out[0], out[1], out[2] = v  # the common case of the loop below
+        else:
+            for j in range(3):
+                if en >> j & 1 and not (bdu and halves[j]):
+                    out[j] = v[j]
         self.samples += n
         if self.limit == 0:
             self.stop()
@@ -247,6 +260,43 @@ class SampleChannel:
                 self.fifo_ovrn = False
         return (v >> 8) & 0xFF if high else v & 0xFF
 
+    def read_bytes(self, i0: int, count: int, big_endian: bool = False) -> bytes:
+        """``count`` consecutive :meth:`read_byte` reads from byte ``i0`` (an auto-increment
+        burst inside the X/Y/Z block), with exactly the same side effects.
+
+        The whole-block read (the drivers' case) is done at once: every high byte is read, so
+        all three DA/OR bits clear; the last byte pops the FIFO; with BDU each axis' half
+        tracking goes through the same two steps as two single reads.
+        """
+        if i0 != 0 or count != 6:
+            return bytes([self.read_byte(i, big_endian) for i in range(i0, i0 + count)])
+        mode = self.fifo_mode
+        if mode != FIFO_BYPASS:
+            fifo = self.fifo
+            if fifo:
+                x, y, z = fifo[0]
+                self._head = fifo.popleft()
+                if mode == FIFO_STREAM:
+                    self.fifo_ovrn = False
+            else:
+                x, y, z = self._head
+        else:
+            x, y, z = self.out
+            if self.bdu:
+                halves = self._halves
+                for j in (0, 1, 2):
+                    h = halves[j] | 1  # byte 2j (whichever half it is, the bit is 1 << 0)
+                    h = 0 if h == 3 else h
+                    h |= 2             # byte 2j + 1
+                    halves[j] = 0 if h == 3 else h
+        self.da &= ~0b111
+        self.ovr &= ~0b111
+        if big_endian:
+            return bytes(((x >> 8) & 0xFF, x & 0xFF, (y >> 8) & 0xFF, y & 0xFF,
+                          (z >> 8) & 0xFF, z & 0xFF))
+        return bytes((x & 0xFF, (x >> 8) & 0xFF, y & 0xFF, (y >> 8) & 0xFF,
+                      z & 0xFF, (z >> 8) & 0xFF))
+
     def status_byte(self) -> int:
         """STATUS layout of both parts: xyzOR in 7..4, xyzDA in 3..0 (bit 0 = X)."""
         da, ovr = self.da, self.ovr
@@ -286,6 +336,10 @@ class StSpiTarget(SpiTarget):
         self._boot_event: list | None = None
         self._warned: set[str] = set()
         self.regs: RegisterFile
+        #: Output blocks a burst read serves in one call: address -> (first address of the
+        #: block, last address, channel). Subclasses fill it for the registers whose read hook
+        #: is their channel's ``read_byte`` (see :meth:`_burst_read`).
+        self._out_blocks: dict[int, tuple[int, int, SampleChannel]] = {}
 
     # -- SPI hooks ------------------------------------------------------------------------------
 
@@ -298,16 +352,22 @@ class StSpiTarget(SpiTarget):
             return b"\xff" * len(tx)
         self._t = t_ns
         self._service(t_ns)
-        out = bytearray(len(tx))
         start = 0
         if self._cmd is None and tx:
             self._cmd = tx[0]
             self._addr = tx[0] & ADDR_MASK
-            out[0] = 0xFF
             start = 1
         cmd = self._cmd
         if cmd is None:
-            return bytes(out)
+            return bytes(len(tx))
+        if cmd & READ_BIT and not faults.random_data and faults.wrong_id is None:
+            # Reads without data faults: the same register reads, served a block at a time.
+            body = self._burst_read(len(tx) - start, cmd & MS_BIT)
+            self._refresh_pins(t_ns)
+            return b"\xff" + body if start else body
+        out = bytearray(len(tx))
+        if start:
+            out[0] = 0xFF
         read, inc = cmd & READ_BIT, cmd & MS_BIT
         addr = self._addr
         for i in range(start, len(tx)):
@@ -321,6 +381,64 @@ class StSpiTarget(SpiTarget):
         self._addr = addr
         self._refresh_pins(t_ns)
         return bytes(out)
+
+    def _burst_read(self, count: int, inc: int) -> bytes:
+        """``count`` data bytes of a read from ``self._addr`` (auto-incrementing if ``inc``),
+        byte for byte what ``_read`` per address gives when no data fault is set.
+
+        Runs inside an output block go to the channel's :meth:`SampleChannel.read_bytes`; the
+        FIFO wrap (OUT_Z_H back to OUT_X_L) is decided once, as reads cannot change the FIFO
+        mode.
+        """
+        addr = self._addr
+        read = self.regs.read
+        if not inc:
+            out = bytes([read(addr) for _ in range(count)])
+            return out
+        blocks = self._out_blocks
+        wrap = None
+        big_endian = None
+        parts: list[bytes] = []
+        single = bytearray()
+        while count > 0:
+            blk = blocks.get(addr)
+            if blk is None:
+                single.append(read(addr))
+                count -= 1
+                if addr == OUT_LAST:
+                    if wrap is None:
+                        wrap = self._fifo_wrap()
+                    addr = OUT_FIRST if wrap else (addr + 1) & ADDR_MASK
+                else:
+                    addr = (addr + 1) & ADDR_MASK
+                continue
+            if single:
+                parts.append(bytes(single))
+                single.clear()
+            first, last, ch = blk
+            k = last - addr + 1
+            if k > count:
+                k = count
+            if big_endian is None:
+                big_endian = self._big_endian()
+            parts.append(ch.read_bytes(addr - first, k, big_endian))
+            count -= k
+            addr += k
+            if addr > last:
+                if last == OUT_LAST:
+                    if wrap is None:
+                        wrap = self._fifo_wrap()
+                    addr = OUT_FIRST if wrap else addr & ADDR_MASK
+                else:
+                    addr &= ADDR_MASK
+        self._addr = addr
+        if single:
+            parts.append(bytes(single))
+        return b"".join(parts)
+
+    def _big_endian(self) -> bool:
+        """Byte order of the output blocks (L3GD20 CTRL_REG4.BLE); little-endian by default."""
+        return False
 
     def _read(self, addr: int) -> int:
         faults = self.faults
@@ -359,7 +477,9 @@ class StSpiTarget(SpiTarget):
 
     def _set_pin(self, pin: Pin, level: int, t_ns: int) -> None:
         if pin.level != level or not pin.driven:
-            pin.set(level, t_ns=max(t_ns, self.kernel.now_ns))
+            now = self.kernel.now_ns
+            # high()/low() rather than set(): the level is known to be 0 or 1.
+            (pin.high if level else pin.low)(t_ns if t_ns > now else now)
 
     def _start_boot(self) -> None:
         if self._boot_event is None:

@@ -32,8 +32,14 @@ class HrtCall:
 
     def _arm(self) -> None:
         k = self.hrt.kernel
-        t_ns = max(self.deadline_us * NS_PER_US, k.now_ns)
-        self._entry = k.call_at(t_ns, self._fire, priority=PRIO_ISR)
+        t_ns = self.deadline_us * NS_PER_US
+        if t_ns < k.now_ns:
+            t_ns = k.now_ns
+        if type(t_ns) is not int:  # what call_at would refuse; post skips its checks
+            raise TypeError(f"hrt: deadline must be an integer number of us, got "
+                            f"{self.deadline_us!r}")
+        # Drivers re-arm a watchdog every cycle, so this is a hot path: post, not call_at.
+        self._entry = k.post(t_ns, PRIO_ISR, self._fire, ())
 
     def _fire(self) -> None:
         self.fired = True
@@ -79,7 +85,8 @@ class Hrt:
         """Call ``fn(*args)`` in interrupt context ``delay_us`` from now."""
         if delay_us < 0:
             raise ValueError(f"hrt call_after: negative delay {delay_us} us")
-        call = HrtCall(self, fn, args, self.absolute_time() + delay_us, 0)
+        k = self.kernel
+        call = HrtCall(self, fn, args, (k.now_ns + k.busy_ns) // NS_PER_US + delay_us, 0)
         call._arm()
         return call
 

@@ -465,9 +465,27 @@ class Mpu6000(SpiTarget):
                                          PRIO_HW, self._on_overflow, ())
 
     def _on_drdy(self) -> None:
+        """A sample is due: re-arm for the next one and pulse INT (:meth:`_assert_int`, inlined:
+        this is the 8 kHz path, and the two must stay alike)."""
         k = self.kernel
-        self._drdy_entry = k.post(k.now_ns + self._period, PRIO_HW, self._on_drdy, ())
-        self._assert_int()
+        now = k.now_ns
+        self._drdy_entry = k.post(now + self._period, PRIO_HW, self._on_drdy, ())
+        faults = self.faults
+        if faults.drdy_stuck or faults.absent:
+            return
+        if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
+            if not self._int_active:
+                self._int_active = True
+                self._pin_on()
+            return
+        if self._int_active:  # a pulse still running: extend it
+            entry = self._release_entry
+            if entry is not None:
+                entry[3] = None
+        else:
+            self._int_active = True
+            self._pin_on()
+        self._release_entry = k.post(now + INT_PULSE_NS, PRIO_HW, self._pulse_end, ())
 
     def _on_overflow(self) -> None:
         self._ovf_entry = None

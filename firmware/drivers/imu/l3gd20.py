@@ -23,6 +23,7 @@ wrong WHO_AM_I (reset; refused after the reset if it stays wrong), identical sam
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 
 from board.gpio import Pin
@@ -79,6 +80,10 @@ def sensor_to_board(rotation: int | str | Sequence[Sequence[float]] | None,
         raise ValueError(f"{where}: rotation must be a PX4 enum or a 3x3 sensor->board matrix, "
                          f"got {rotation!r}")
     return rows
+
+
+#: Three little-endian int16 from an offset: the X/Y/Z output block in one C call.
+_XYZ_LE = struct.Struct("<3h").unpack_from
 
 
 def _s16(lo: int, hi: int) -> int:
@@ -308,7 +313,7 @@ class L3gd20Driver(SensorDriver):
         self._bad_in_row = 0
         if status & STATUS_ZYXOR:
             self.perf_missed.count()
-        raw = (_s16(d[2], d[3]), _s16(d[4], d[5]), _s16(d[6], d[7]))
+        raw = _XYZ_LE(d, 2)  # OUT_X_L .. OUT_Z_H: three little-endian int16 (as _s16)
         if not publish:
             self._last_raw = raw
             return
@@ -335,7 +340,7 @@ class L3gd20Driver(SensorDriver):
 
     def _publish(self, raw: tuple[int, int, int], clip: list[int], temperature: float,
                  t_sample_us: int, now_us: int) -> None:
-        x, y, z = (v * SCALE_RAD_S for v in raw)
+        x, y, z = raw[0] * SCALE_RAD_S, raw[1] * SCALE_RAD_S, raw[2] * SCALE_RAD_S
         r = self.rotation
         if r is not None:
             x, y, z = (r[0][0] * x + r[0][1] * y + r[0][2] * z,

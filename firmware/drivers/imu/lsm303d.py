@@ -25,6 +25,7 @@ registers, wrong ID after reset (refused, retried every 100 ms).
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 
 from board.spi import SpiHandle
@@ -80,6 +81,10 @@ CONFIG: tuple[tuple[int, int, int], ...] = (
 )
 
 STATE_RESET, STATE_WAIT_FOR_RESET, STATE_CONFIGURE, STATE_READ = range(4)
+
+
+#: X/Y/Z little-endian int16 triples of a FIFO burst, one tuple per sample.
+_iter_xyz_le = struct.Struct("<3h").iter_unpack
 
 
 def _s16(lo: int, hi: int) -> int:
@@ -296,9 +301,8 @@ class Lsm303dDriver(SensorDriver):
         self._bad_in_row = 0
         sx = sy = sz = 0
         clip = [0, 0, 0]
-        for i in range(n):
-            o = 6 * i
-            raw = (_s16(d[o], d[o + 1]), _s16(d[o + 2], d[o + 3]), _s16(d[o + 4], d[o + 5]))
+        # Samples as (x, y, z) little-endian int16 triples (what _s16 per byte pair gives).
+        for raw in _iter_xyz_le(d):
             if raw == self._last_accel:
                 self._same_accel += 1
                 if self._same_accel >= STUCK_SAMPLES:
@@ -307,9 +311,10 @@ class Lsm303dDriver(SensorDriver):
             else:
                 self._same_accel = 0
             self._last_accel = raw
-            for j in range(3):
-                if raw[j] in (32767, -32768):
-                    clip[j] += 1
+            if 32767 in raw or -32768 in raw:
+                for j in range(3):
+                    if raw[j] in (32767, -32768):
+                        clip[j] += 1
             sx += raw[0]
             sy += raw[1]
             sz += raw[2]

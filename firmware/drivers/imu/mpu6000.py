@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import struct
+from operator import ne
 from typing import Any
 
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
@@ -135,6 +136,7 @@ class Mpu6000Driver(SensorDriver):
         self._next_temp_us = 0
         self._check_index = 0
         self._fifo_tx: dict[int, bytes] = {}
+        self._fifo_unpack: dict[int, Any] = {}  # records -> compiled big-endian unpack
         orb = platform.orb
         self._pub_accel = orb.advertise_multi("sensor_accel")
         self._pub_gyro = orb.advertise_multi("sensor_gyro")
@@ -414,7 +416,10 @@ class Mpu6000Driver(SensorDriver):
             self._no_answer_seen("FIFO data")
             return
         self._no_answer = 0
-        raw = struct.unpack(f">{6 * n}h", data)
+        unpack = self._fifo_unpack.get(n)
+        if unpack is None:
+            unpack = self._fifo_unpack[n] = struct.Struct(f">{6 * n}h").unpack
+        raw = unpack(data)
         if not self._accel_repeats(raw, n):
             self._error(self.perf_bad_transfer)
             self._corrupt += 1
@@ -432,9 +437,8 @@ class Mpu6000Driver(SensorDriver):
         Corrupt or random data fails this long before it fails anything else."""
         if n < 2:
             return True
-        ax, ay, az = raw[0::6], raw[1::6], raw[2::6]
-        changes = sum(1 for i in range(1, n)
-                      if ax[i] != ax[i - 1] or ay[i] != ay[i - 1] or az[i] != az[i - 1])
+        acc = list(zip(raw[0::6], raw[1::6], raw[2::6]))
+        changes = sum(map(ne, acc[1:], acc[:-1]))  # consecutive records whose accel differs
         return changes <= n // 8 + 1
 
     def _check_stuck(self, data: bytes, n: int) -> None:
@@ -453,11 +457,10 @@ class Mpu6000Driver(SensorDriver):
                                           f"samples")
 
     def _publish(self, raw: tuple[int, ...], n: int, now_us: int) -> None:
-        axes = [raw[i::6] for i in range(6)]
         sa = self.accel_scale / n
         sg = GYRO_SCALE / n
-        ax, ay, az = sum(axes[0]) * sa, sum(axes[1]) * sa, sum(axes[2]) * sa
-        gx, gy, gz = sum(axes[3]) * sg, sum(axes[4]) * sg, sum(axes[5]) * sg
+        ax, ay, az = sum(raw[0::6]) * sa, sum(raw[1::6]) * sa, sum(raw[2::6]) * sa
+        gx, gy, gz = sum(raw[3::6]) * sg, sum(raw[4::6]) * sg, sum(raw[5::6]) * sg
         rot = self.rotation
         if rot is not None:
             (r0, r1, r2) = rot
@@ -485,7 +488,8 @@ class Mpu6000Driver(SensorDriver):
         g.error_count = self.error_count
         g.samples = n
         if clipped:  # samples at a rail, per sensor axis (PX4 counts both rails)
-            c = [min(sum(1 for v in axis if v >= 32767 or v <= -32767), 255) for axis in axes]
+            c = [min(sum(1 for v in raw[i::6] if v >= 32767 or v <= -32767), 255)
+                 for i in range(6)]
             a.clip_counter, g.clip_counter = c[:3], c[3:]
         else:
             a.clip_counter = g.clip_counter = [0, 0, 0]
