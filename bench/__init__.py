@@ -43,6 +43,8 @@ FIGURES: list[Figure] = [
            "S.BUS frames fed byte by byte with timestamps into the IO's decoder", 5),
     Figure("px4io_transactions_per_s", "bench_px4io:bench_px4io_transactions_per_s",
            "transactions/s", "FMU encode + IO request handler + FMU decode, typical mix", 5),
+    Figure("fmu_sensors_rtf", "bench_fmu_sensors:bench_fmu_sensors_rtf", "x real time",
+           "the FMU with its six sensor drivers only, spinning on the turntable", 4),
     Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
            "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]
