@@ -13,9 +13,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from hil.demo import main
+    from hil.flight import FlightConfig, main
 
-    return main(seed=args.seed, duration_s=args.duration, as_json=args.json)
+    cfg = FlightConfig(seed=args.seed, out_dir=args.out, airframe=args.airframe,
+                       quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
+                       mode="local" if args.one_process else "process",
+                       timeout_s=args.duration, progress=not args.json)
+    return main(cfg, as_json=args.json)
 
 
 def _cmd_log(args: argparse.Namespace) -> int:
@@ -43,10 +47,18 @@ def build_parser() -> argparse.ArgumentParser:
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    p = sub.add_parser("run", help="run the default emulation (the main job)")
+    p = sub.add_parser("run", help="fly the default mission (the main job)")
     p.add_argument("--seed", type=int, default=1, help="seed of every noise source (default 1)")
-    p.add_argument("--duration", type=float, default=10.0,
-                   help="virtual seconds to run (default 10)")
+    p.add_argument("--duration", type=float, default=240.0,
+                   help="virtual seconds the flight may take before it counts as failed")
+    p.add_argument("--speed", type=float, default=None,
+                   help="pace to the wall clock times this factor (default: as fast as possible)")
+    p.add_argument("--quantum-us", type=float, default=1000.0,
+                   help="lockstep quantum in microseconds (default 1000)")
+    p.add_argument("--out", default="out", help="output folder: log, plot, FRAM, SD card")
+    p.add_argument("--airframe", type=int, default=4011, help="SYS_AUTOSTART (default 4011, F450)")
+    p.add_argument("--one-process", action="store_true",
+                   help="run both boards in this process (debugging)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
 

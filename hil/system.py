@@ -43,6 +43,8 @@ class SystemConfig:
     trace_path: str | None = None
     fresh_fram: bool = True           # start from erased FRAM (reproducible runs)
     host_clock: bool = False          # let `top` show host time (not deterministic)
+    gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
+    udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -87,6 +89,23 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         hub.add(bridge)
         devices["console"] = bridge
         wiring += uart_link(("fmu", "console"), (WORLD, "console"))
+    if cfg.gcs or cfg.udp_bridge:
+        from hil.mavlink_bridge import udp_wires
+
+        if cfg.gcs:
+            from hil.gcs import GcsClient
+
+            gcs = GcsClient("gcs", fmu_port=18570)
+            hub.add(gcs)
+            devices["gcs"] = gcs
+            wiring += udp_wires("gcs")
+        if cfg.udp_bridge:
+            from hil.mavlink_bridge import MavlinkUdpBridge
+
+            bridge_dev = MavlinkUdpBridge()
+            hub.add(bridge_dev)
+            devices["udp"] = bridge_dev
+            wiring += udp_wires(bridge_dev.port)
     orch = Orchestrator(boards, wiring, world=hub, quantum_ns=cfg.quantum_ns, mode=cfg.mode,
                         speed=cfg.speed, trace_path=cfg.trace_path)
     return orch, devices

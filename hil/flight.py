@@ -1,0 +1,285 @@
+"""``hil run``: the default flight, flown by a ground station in virtual time.
+
+Both boards and the world run in lockstep. A virtual-time GCS (MAVLink over the FMU's network
+port) waits for the estimator, uploads a mission (takeoff to 10 m, a square of four waypoints
+20 m apart), presses nothing but what a pilot would (the safety switch), arms, starts the
+mission, and the vehicle returns and lands by itself; the commander disarms after landing.
+
+The run records the world's truth every 50 ms and the phases' virtual times, then prints a
+summary: phases, tracking errors against the planned path, the estimator's errors against truth,
+the landing distance from home, and the real-time factor. The ULog is the FMU's own, written to
+the emulated SD card; the PNG is drawn from the recorded truth and estimate.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hil.gcs import GcsClient
+from hil.system import SystemConfig, build_system
+
+__all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
+
+NS_PER_S = 1_000_000_000
+#: the square's corners, metres north and east of home
+SQUARE_NE = ((20.0, -10.0), (20.0, 10.0), (40.0, 10.0), (40.0, -10.0))
+M_PER_DEG_LAT = 111_132.954
+
+
+@dataclass
+class FlightConfig:
+    seed: int = 1
+    out_dir: str = "out"
+    airframe: int = 4011
+    quantum_ns: int = 1_000_000
+    speed: float | None = None
+    mode: str = "process"
+    altitude_m: float = 10.0
+    timeout_s: float = 240.0            # virtual seconds for the whole flight
+    params: dict[str, Any] = field(default_factory=dict)
+    progress: bool = True
+    plot: bool = True
+
+
+class _Recorder:
+    """Samples truth and the GCS's view of the estimate every 50 ms of virtual time."""
+
+    def __init__(self, world: Any, gcs: GcsClient) -> None:
+        self.world = world
+        self.gcs = gcs
+        self.next_ns = 0
+        self.rows: list[tuple] = []
+
+    def __call__(self, orch: Any) -> None:
+        if orch.t_ns < self.next_ns:
+            return
+        self.next_ns = orch.t_ns + 50_000_000
+        tr = self.world.truth()
+        att = self.gcs.last.get("ATTITUDE")
+        lpos = self.gcs.last.get("LOCAL_POSITION_NED")
+        self.rows.append((orch.t_ns / NS_PER_S, tr.pos_ned_m, tr.agl_m, tr.euler_rad,
+                          (att.roll, att.pitch, att.yaw) if att else None,
+                          (lpos.x, lpos.y, lpos.z) if lpos else None, tr.vel_ned_m_s))
+
+
+def _say(cfg: FlightConfig, text: str) -> None:
+    if cfg.progress:
+        print(text, flush=True)
+
+
+def _dist_to_segment(p: tuple[float, float], a: tuple[float, float],
+                     b: tuple[float, float]) -> float:
+    ax, ay = a
+    bx, by = b
+    dx, dy = bx - ax, by - ay
+    L2 = dx * dx + dy * dy
+    t = 0.0 if L2 == 0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
+    return math.hypot(p[0] - (ax + t * dx), p[1] - (ay + t * dy))
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def fly(cfg: FlightConfig) -> dict[str, Any]:
+    """Fly the default mission; returns the summary (see module docstring)."""
+    # Return at the mission's altitude (PX4's default RTL_RETURN_ALT of 60 m would climb).
+    params = {"SDLOG_MODE": 0, "EKF2_MAG_DECL": 2.6, "RTL_RETURN_ALT": cfg.altitude_m,
+              "RTL_DESCEND_ALT": cfg.altitude_m, **cfg.params}
+    scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
+                        quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
+                        params=params, gcs=True)
+    orch, dev = build_system(scfg)
+    gcs: GcsClient = dev["gcs"]
+    world = dev["world"].world
+    rec = _Recorder(world, gcs)
+    orch.on_quantum.append(rec)
+    phases: list[dict[str, Any]] = []
+    S = NS_PER_S
+
+    def phase(name: str) -> None:
+        phases.append({"name": name, "t_s": round(orch.t_ns / S, 3)})
+        _say(cfg, f"  [{orch.t_ns / S:7.2f} s] {name}   (real-time factor {orch.rtf:.1f})")
+
+    wall0 = time.perf_counter()
+    home = (47.397742, 8.545594)
+    with orch:
+        gcs.attach(orch)
+        _say(cfg, f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}")
+        gcs.wait_heartbeat(timeout_s=10.0)
+        phase("booted (heartbeat)")
+        dev["safety"].press(orch.t_ns + S // 2, hold_s=1.5)
+        gcs.wait_for(lambda: (gcs.last.get("HOME_POSITION") is not None
+                              or _estimator_ready(gcs)), timeout_s=60.0)
+        phase("estimator ready (GPS position)")
+        gp = gcs.last.get("GLOBAL_POSITION_INT")
+        if gp is not None:
+            home = (gp.lat * 1e-7, gp.lon * 1e-7)
+        m_per_deg_lon = M_PER_DEG_LAT * math.cos(math.radians(home[0]))
+        items: list[tuple] = [(home[0], home[1], cfg.altitude_m, 22)]  # NAV_TAKEOFF
+        for n, e in SQUARE_NE:
+            items.append((home[0] + n / M_PER_DEG_LAT, home[1] + e / m_per_deg_lon,
+                          cfg.altitude_m, 16))
+        items.append((home[0], home[1], cfg.altitude_m, 20))  # NAV_RETURN_TO_LAUNCH
+        result = gcs.upload_mission(items)
+        if result != 0:
+            raise RuntimeError(f"mission upload refused (MISSION_ACK type {result})")
+        phase("mission uploaded (takeoff, 4 waypoints, return)")
+        gcs.wait_for(lambda: orch.t_ns > 0 and dev["safety"].presses and _safety_off(orch),
+                     timeout_s=10.0)
+        phase("safety switch off")
+        ack = gcs.arm(timeout_s=5.0)
+        if ack.result != 0:
+            raise RuntimeError(f"arming refused: {gcs.last.get('STATUSTEXT')}")
+        phase("armed")
+        gcs.start_mission()
+        t_takeoff = None
+        reached: set[int] = set()
+        deadline = orch.t_ns + int(cfg.timeout_s * S)
+        while orch.t_ns < deadline:
+            gcs.step(0.2)
+            agl = world.truth().agl_m
+            if t_takeoff is None and agl > cfg.altitude_m - 0.5:
+                t_takeoff = orch.t_ns
+                phase(f"takeoff: reached {cfg.altitude_m:.0f} m")
+            for m in gcs.messages("MISSION_ITEM_REACHED", since=max(0, gcs.mark() - 200)):
+                if 1 <= m.seq <= len(SQUARE_NE) and m.seq not in reached:
+                    reached.add(m.seq)
+                    phase(f"waypoint {m.seq} reached")
+            hb = gcs.last.get("HEARTBEAT")
+            armed = bool(hb and hb.base_mode & 128)
+            if t_takeoff is not None and not armed:
+                phase("landed and disarmed")
+                break
+        else:
+            raise RuntimeError(f"flight did not finish within {cfg.timeout_s} virtual s")
+        rtf = orch.rtf
+    wall = time.perf_counter() - wall0
+    return _summary(cfg, rec.rows, phases, reached, home, rtf, wall)
+
+
+def _estimator_ready(gcs: GcsClient) -> bool:
+    gp = gcs.last.get("GPS_RAW_INT")
+    return gp is not None and gp.fix_type >= 3 and gcs.last.get("GLOBAL_POSITION_INT") is not None
+
+
+def _safety_off(orch: Any) -> bool:
+    io = orch.call("fmu", "topic", "px4io_status")
+    return bool(io and io["status_safety_off"])
+
+
+def _summary(cfg: FlightConfig, rows: list[tuple], phases: list[dict], reached: set[int],
+             home: tuple[float, float], rtf: float, wall: float) -> dict[str, Any]:
+    t_of = {p["name"]: p["t_s"] for p in phases}
+    t_top = next((p["t_s"] for p in phases if p["name"].startswith("takeoff")), None)
+    t_wp4 = next((p["t_s"] for p in phases if p["name"] == f"waypoint {len(SQUARE_NE)} reached"),
+                 None)
+    t_wp1 = next((p["t_s"] for p in phases if p["name"] == "waypoint 1 reached"), None)
+    legs = list(zip(SQUARE_NE, SQUARE_NE[1:]))
+    max_h = max_v = 0.0
+    att_err: list[float] = []
+    pos_err: list[float] = []
+    for t, pos, agl, eul, att, lpos, _vel in rows:
+        if t_top is not None and t_wp4 is not None and t_top <= t <= t_wp4:
+            max_v = max(max_v, abs(agl - cfg.altitude_m))
+        if t_wp1 is not None and t_wp4 is not None and t_wp1 <= t <= t_wp4:
+            d = min(_dist_to_segment((pos[0], pos[1]), a, b) for a, b in legs)
+            max_h = max(max_h, d)
+        if att is not None and t_top is not None:
+            att_err.append(max(abs(_wrap(a - b)) for a, b in zip(att, eul)))
+        if lpos is not None and t_top is not None:
+            pos_err.append(math.dist(lpos, pos))
+    last = rows[-1] if rows else None
+    landed_dist = math.hypot(last[1][0], last[1][1]) if last else float("nan")
+    log = _newest_log(Path(cfg.out_dir) / "sd" / "log")
+    summary: dict[str, Any] = {
+        "rtf": round(rtf, 2),
+        "wall_s": round(wall, 1),
+        "log": str(log) if log else None,
+        "landed_distance_m": round(landed_dist, 2),
+        "max_alt_error_m": round(max_v, 3),
+        "max_track_error_m": round(max_h, 3),
+        "waypoints_reached": sorted(reached),
+        "attitude_error_max_deg": round(math.degrees(max(att_err)), 2) if att_err else None,
+        "attitude_error_rms_deg": (round(math.degrees(math.sqrt(sum(e * e for e in att_err)
+                                                                / len(att_err))), 3)
+                                   if att_err else None),
+        "position_error_max_m": round(max(pos_err), 2) if pos_err else None,
+        "phases": phases,
+        "seed": cfg.seed,
+    }
+    if cfg.plot and rows:
+        summary["plot"] = str(_plot(cfg, rows))
+    del t_of
+    return summary
+
+
+def _newest_log(root: Path) -> Path | None:
+    logs = sorted(root.rglob("*.ulg"), key=lambda p: p.stat().st_mtime) if root.exists() else []
+    return logs[-1] if logs else None
+
+
+def _plot(cfg: FlightConfig, rows: list[tuple]) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = [r[0] for r in rows]
+    n = [r[1][0] for r in rows]
+    e = [r[1][1] for r in rows]
+    agl = [r[2] for r in rows]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    ax1.plot(e, n, label="truth")
+    est = [(r[5][1], r[5][0]) for r in rows if r[5] is not None]
+    if est:
+        ax1.plot([p[0] for p in est], [p[1] for p in est], "--", label="estimate")
+    sq = list(SQUARE_NE) + [SQUARE_NE[0]]
+    ax1.plot([p[1] for p in sq], [p[0] for p in sq], "k:", label="mission")
+    ax1.plot([0], [0], "g^", label="home")
+    ax1.set_xlabel("east (m)")
+    ax1.set_ylabel("north (m)")
+    ax1.set_aspect("equal")
+    ax1.legend(loc="best")
+    ax2.plot(t, agl, label="height above ground (truth)")
+    ax2.axhline(cfg.altitude_m, color="k", ls=":", lw=0.8)
+    ax2.set_xlabel("virtual time (s)")
+    ax2.set_ylabel("m")
+    ax2.legend(loc="best")
+    fig.suptitle(f"fmu-hil default flight, seed {cfg.seed}")
+    fig.tight_layout()
+    out = Path(cfg.out_dir) / "flight.png"
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+    return out
+
+
+def main(cfg: FlightConfig, as_json: bool = False) -> int:
+    try:
+        summary = fly(cfg)
+    except RuntimeError as exc:
+        print(f"hil run: {exc}", file=sys.stderr)
+        return 1
+    if as_json:
+        print(json.dumps(summary))
+        return 0
+    print("summary:")
+    for p in summary["phases"]:
+        print(f"  {p['t_s']:8.2f} s  {p['name']}")
+    print(f"  max altitude error at 10 m: {summary['max_alt_error_m']:.2f} m; max track error "
+          f"on the square: {summary['max_track_error_m']:.2f} m")
+    print(f"  estimator vs truth: attitude max {summary['attitude_error_max_deg']} deg "
+          f"(rms {summary['attitude_error_rms_deg']}), position max "
+          f"{summary['position_error_max_m']} m")
+    print(f"  landed {summary['landed_distance_m']:.2f} m from home")
+    print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time)")
+    print(f"  log: {summary['log']}")
+    if summary.get("plot"):
+        print(f"  plot: {summary['plot']}")
+    return 0
