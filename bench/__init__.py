@@ -45,6 +45,8 @@ FIGURES: list[Figure] = [
            "transactions/s", "FMU encode + IO request handler + FMU decode, typical mix", 5),
     Figure("fmu_sensors_rtf", "bench_fmu_sensors:bench_fmu_sensors_rtf", "x real time",
            "the FMU with its six sensor drivers only, spinning on the turntable", 4),
+    Figure("flight_rtf", "bench_flight:bench_flight_rtf", "x real time",
+           "the default flight (hil run): two board processes, world, GCS, whole mission", 7),
     Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
            "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]
