@@ -36,6 +36,13 @@ def _cmd_shell(args: argparse.Namespace) -> int:
     return shell_client.main(args.port, args.command, args.timeout)
 
 
+def _cmd_fly(args: argparse.Namespace) -> int:
+    from hil.fly import main
+
+    return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
+                airframe=args.airframe, keep_safety=args.keep_safety)
+
+
 def _cmd_params(args: argparse.Namespace) -> int:
     from hil import params_doc
 
@@ -61,6 +68,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run both boards in this process (debugging)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("fly", help="run paced to the wall clock for ground stations (QGC, MAVSDK)")
+    p.add_argument("--speed", type=float, default=1.0, help="times real time (default 1.0)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--duration", type=float, default=None, help="virtual seconds (default: until Ctrl-C)")
+    p.add_argument("--out", default="out", help="output folder: log, FRAM, SD card")
+    p.add_argument("--airframe", type=int, default=4011)
+    p.add_argument("--keep-safety", action="store_true",
+                   help="do not press the safety switch at boot")
+    p.set_defaults(func=_cmd_fly)
 
     p = sub.add_parser("bench", help="measure the speed figures")
     p.add_argument("--json", action="store_true", help="print one JSON object, one key per figure")

@@ -1,0 +1,83 @@
+"""``hil fly``: the emulator paced to the wall clock, for ground stations, scripts and people.
+
+Both boards and the world run in lockstep, paced at ``--speed`` times real time (1.0 by default).
+MAVLink is reachable on 127.0.0.1 the way PX4 SITL users expect:
+
+* QGroundControl and MAVProxy: the vehicle sends to UDP 14550 (QGC finds it by itself;
+  ``mavproxy.py --master=udpin:127.0.0.1:14550``),
+* MAVSDK and other API clients: the vehicle sends to UDP 14540 (``udp://:14540``),
+
+and the FMU console (nsh) is on a host pseudo-terminal and a TCP port, which ``hil shell``
+finds by itself. The safety switch is pressed two seconds after boot unless
+``--keep-safety`` is given, since a ground station cannot press it.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import Any
+
+from hil.shell_client import announce, withdraw
+from hil.system import SystemConfig, build_system
+
+__all__ = ["main"]
+
+NS_PER_S = 1_000_000_000
+
+
+def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
+         out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
+         params: dict[str, Any] | None = None, quiet: bool = False) -> int:
+    if speed <= 0:
+        print("hil fly: --speed must be positive", file=sys.stderr)
+        return 2
+    cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
+                       console=True, udp_bridge=True,
+                       params={"EKF2_MAG_DECL": 2.6, **(params or {})})
+    orch, dev = build_system(cfg)
+    say = (lambda text: None) if quiet else (lambda text: print(text, flush=True))
+    stop = {"now": False}
+
+    def on_term(_signum: int, _frame: Any) -> None:
+        stop["now"] = True
+
+    signal.signal(signal.SIGTERM, on_term)
+    try:
+        with orch:
+            console = dev["console"]
+            announce({"console_tcp": console.tcp_port, "console_pty": console.pty_name,
+                      "mavlink_udp": [14550, 14540], "speed": speed})
+            say(f"hil fly: Pixhawk 1 (FMU + IO) with the JSBSim F450, {speed:g}x real time, "
+                f"seed {seed}")
+            say("  QGroundControl / MAVProxy: the vehicle sends to udp 127.0.0.1:14550 "
+                "(mavproxy.py --master=udpin:127.0.0.1:14550)")
+            say("  MAVSDK / API:               udp://:14540")
+            say(f"  console (nsh):              hil shell   (tcp 127.0.0.1:{console.tcp_port}, "
+                f"pty {console.pty_name})")
+            say("  Ctrl-C to stop.")
+            if not keep_safety:
+                dev["safety"].press(2 * NS_PER_S, hold_s=1.5)
+            end = None if duration_s is None else int(duration_s * NS_PER_S)
+            last_report = time.monotonic()
+            while not stop["now"] and (end is None or orch.t_ns < end):
+                orch.run(duration_ns=100_000_000)
+                if time.monotonic() - last_report > 10 and not quiet:
+                    last_report = time.monotonic()
+                    tr = dev["world"].world.truth()
+                    say(f"  t = {orch.t_ns / NS_PER_S:7.1f} s  height {tr.agl_m:6.2f} m  "
+                        f"real-time factor {orch.rtf:.2f}")
+            if orch.dead:
+                say(f"hil fly: board(s) died: {', '.join(orch.dead)}")
+                return 1
+    except KeyboardInterrupt:
+        say("hil fly: stopped")
+        return 130
+    finally:
+        withdraw()
+        for name in ("console", "udp"):
+            close = getattr(dev.get(name), "close", None)
+            if close is not None:
+                close()
+    return 0
