@@ -16,6 +16,18 @@ EXTI rules follow the STM32 reference manuals (RM0090 / RM0041 "EXTI"):
 * An edge sets the line's pending bit; the handler runs once for a pending bit however many
   edges arrived before it ran (the extra edges are counted in :attr:`ExtiLine.coalesced`).
 
+Pulses (:meth:`Pin.pulse`): a device model's data-ready pulse drives a level now and returns
+to its idle level a fixed time later. When nothing observes the return (no ``on_change``
+listener, the pin's EXTI line not selecting that edge) the return is not a kernel event: the
+pin remembers when it happens and the level is worked out when read (``level``, ``driven``, the
+next drive). Attaching a listener or an interrupt that could see it turns it back into an
+event. A later drive of the pin replaces a pending return. With ``sync=True`` (only for a
+device model's own hardware event, at its event time with no bus time spent) an edge's EXTI
+handler runs at once instead of as a queued event: same edge time, same ``in_isr``, same
+pending-bit rules; only its place among other events at the very same nanosecond differs.
+The handler runs after the model has finished updating its own state (it may read the chip).
+The MPU6000's 8 kHz data-ready is the reason: three kernel events per sample become one.
+
 A pin nobody drives reads its pull level: 1 for ``pull="up"``, 0 for ``"down"`` and, for a
 floating input (``None``), 0 (real floating inputs are undefined; 0 keeps runs deterministic).
 """
@@ -87,7 +99,8 @@ class ExtiLine:
 class Pin:
     """A named pin such as ``PD15``; its level is 0 or 1."""
 
-    __slots__ = ("_driven", "_gpio", "_level", "_listeners", "name", "number", "port", "pull")
+    __slots__ = ("_driven", "_gpio", "_level", "_listeners", "_ret_drive", "_ret_entry", "_ret_t",
+                 "name", "number", "port", "pull")
 
     def __init__(self, gpio: Gpio, name: str, port: str, number: int, pull: str | None) -> None:
         self._gpio = gpio
@@ -98,20 +111,115 @@ class Pin:
         self._driven: int | None = None
         self._level = 1 if pull == "up" else 0
         self._listeners: list[PinListener] = []
+        #: A lazy return (see :meth:`pulse`): its time (-1: none) and the drive it restores.
+        self._ret_t = -1
+        self._ret_drive: int | None = None
+        #: A return nobody could see turned into a kernel event because something can now.
+        self._ret_entry: list | None = None
 
     @property
     def level(self) -> int:
         """The level on the wire now (the driven level, else the pull level)."""
+        if self._ret_t >= 0:
+            self._settle(self._gpio.kernel.now_ns)
         return self._level
 
     @property
     def driven(self) -> bool:
         """True if something drives the pin (as opposed to the pull resistor)."""
+        if self._ret_t >= 0:
+            self._settle(self._gpio.kernel.now_ns)
         return self._driven is not None
 
     def value(self) -> int:
         """MicroPython ``Pin.value()`` spelling of :attr:`level`."""
-        return self._level
+        return self.level
+
+    def _settle(self, t_ns: int) -> None:
+        """Apply a lazy return due at or before ``t_ns`` (silently: nobody observes it)."""
+        t = self._ret_t
+        if 0 <= t <= t_ns:
+            self._ret_t = -1
+            d = self._driven = self._ret_drive
+            self._level = d if d is not None else (1 if self.pull == "up" else 0)
+
+    def _drop_return(self, t_ns: int) -> None:
+        """A drive at ``t_ns``: a return due by then happens first, a later one is replaced."""
+        if self._ret_t >= 0:
+            self._settle(t_ns)
+            self._ret_t = -1
+        entry = self._ret_entry
+        if entry is not None:
+            self._ret_entry = None
+            entry[3] = None
+            if entry[0] <= t_ns:  # due already (inside a bus wait): it happens first
+                self._apply(entry[4][0], entry[0])
+
+    def _materialize(self) -> None:
+        """Something may now observe a lazy return: make a future one a kernel event."""
+        if self._ret_t < 0:
+            return
+        kernel = self._gpio.kernel
+        self._settle(kernel.now_ns)
+        t = self._ret_t
+        if t >= 0:
+            self._ret_t = -1
+            self._ret_entry = kernel.post(t, PRIO_HW, self._return, (self._ret_drive, t))
+
+    def _return(self, drive: int | None, t_ns: int) -> None:
+        self._ret_entry = None
+        self._apply(drive, t_ns)
+
+    def pulse(self, on: int | None, off: int | None, end_ns: int, sync: bool = False) -> None:
+        """Drive ``on`` now (``kernel.context_ns``) and ``off`` at ``end_ns`` (None: release).
+
+        The return is lazy when nothing can observe it (see the module docstring). ``sync``
+        runs the EXTI handler of the leading edge at once; only a device model's own
+        ``PRIO_HW`` event at its event time may ask for it (elsewhere it would preempt a thread).
+        Edge detection, listeners and pending-bit coalescing are :meth:`_apply`'s, inlined: this
+        is the per-sample data-ready path (8 kHz on the MPU6000).
+        """
+        gpio = self._gpio
+        kernel = gpio.kernel
+        busy = kernel.busy_ns
+        t = kernel.now_ns + busy
+        pull = 1 if self.pull == "up" else 0
+        rt = self._ret_t
+        if rt >= 0:  # the previous pulse's lazy return (_drop_return, inlined)
+            self._ret_t = -1
+            if rt <= t:
+                d = self._ret_drive
+                self._level = d if d is not None else pull
+        if self._ret_entry is not None:
+            self._drop_return(t)
+        self._driven = on
+        new = on if on is not None else pull
+        edge = new != self._level
+        self._level = new
+        line = gpio.exti[self.number]
+        mine = line.pin is self
+        listeners = self._listeners
+        if listeners or (mine and (line.rising if (off if off is not None else pull)
+                                   else line.falling)):
+            self._ret_entry = kernel.post(end_ns, PRIO_HW, self._return, (off, end_ns))
+        else:
+            self._ret_t = end_ns
+            self._ret_drive = off
+        if not edge:
+            return
+        if listeners:
+            for listener in tuple(listeners):
+                listener(self, t, new)
+        if not mine or not (line.rising if new else line.falling):
+            return
+        if line.pending:
+            line.coalesced += 1
+            return
+        line.pending = True
+        if sync and not busy:
+            gpio._fire(line, self, t)
+        else:
+            kernel.post(t, PRIO_ISR, gpio._fire, (line, self, t))
 
     def set(self, level: int, t_ns: int | None = None) -> None:
         """Drive the pin to ``level`` (0 or 1).
@@ -161,12 +269,17 @@ class Pin:
         else:
             kernel.post(t_ns, PRIO_HW, self._apply, (level, t_ns))  # checked above
 
-    def _apply(self, level: int | None, t_ns: int) -> None:
+    def _apply(self, level: int | None, t_ns: int, defer: list | None = None) -> None:
         """The level changes at ``t_ns`` (>= now): listeners, then the EXTI edge.
 
-        This runs twice per MPU6000 sample (8 kHz), so the EXTI part of :meth:`Gpio._edge` is
-        inlined here and the listener snapshot is only taken when there are listeners.
+        Per data-ready edge of the ST chips, so the EXTI part of :meth:`Gpio._edge` is inlined
+        here and the listener snapshot is only taken when there are listeners. ``defer``: a
+        device model's own hardware event at its event time collects the handler calls there
+        and makes them itself once its state is consistent (``Gpio._fire(*args)`` for each),
+        instead of queueing an event per edge (see :meth:`pulse`).
         """
+        if self._ret_t >= 0 or self._ret_entry is not None:
+            self._drop_return(t_ns)
         self._driven = level
         new = level if level is not None else (1 if self.pull == "up" else 0)
         if new == self._level:
@@ -183,8 +296,12 @@ class Pin:
             line.coalesced += 1
             return
         line.pending = True
-        # kernel.post: t_ns is the edge time, never before now (call_at's checks are moot).
-        gpio.kernel.post(t_ns, PRIO_ISR, gpio._fire, (line, self, t_ns))
+        kernel = gpio.kernel
+        if defer is not None and t_ns == kernel.now_ns and not kernel.busy_ns:
+            defer.append((line, self, t_ns))
+        else:
+            # kernel.post: t_ns is the edge time, never before now (call_at's checks are moot).
+            kernel.post(t_ns, PRIO_ISR, gpio._fire, (line, self, t_ns))
 
     def on_change(self, listener: PinListener) -> None:
         """Call ``listener(pin, t_ns, level)`` synchronously on every level change.
@@ -194,6 +311,7 @@ class Pin:
         """
         if not callable(listener):
             raise TypeError(f"pin {self.name}: on_change listener {listener!r} is not callable")
+        self._materialize()
         self._listeners.append(listener)
 
     def remove_listener(self, listener: PinListener) -> None:
@@ -213,7 +331,7 @@ class Pin:
         self._gpio.detach(self)
 
     def __repr__(self) -> str:
-        return f"<Pin {self.name}={self._level}{'' if self.driven else ' (pull)'}>"
+        return f"<Pin {self.name}={self.level}{'' if self.driven else ' (pull)'}>"
 
 
 class Gpio:
@@ -245,6 +363,7 @@ class Gpio:
             pin = Pin(self, name, m.group(1), int(m.group(2)), pull)
             self._pins[name] = pin
         elif pull is not None and pull != pin.pull:
+            pin._settle(self.kernel.now_ns)
             pin.pull = pull
             if not pin.driven:
                 pin._apply(None, self.kernel.context_ns)
@@ -285,6 +404,7 @@ class Gpio:
             self.exti_rerouted += 1
             log.warning("%s: EXTI line %d re-routed from %s to %s; %s no longer interrupts",
                         self.name, p.number, line.pin.name, p.name, line.pin.name)
+        p._materialize()
         line.pin = p
         line.handler = handler
         line.rising = bool(rising)

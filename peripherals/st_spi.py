@@ -333,6 +333,8 @@ class StSpiTarget(SpiTarget):
         #: Time of the access being served (hooks use it to restart sample grids).
         self._t = 0
         self._pin_event: list | None = None
+        #: While :meth:`_on_pin_event` drives the pins: the EXTI calls it makes at its end.
+        self._hw_edges: list | None = None
         self._boot_event: list | None = None
         self._warned: set[str] = set()
         self.regs: RegisterFile
@@ -463,11 +465,21 @@ class StSpiTarget(SpiTarget):
             self._pin_event = self.kernel.call_at(t_ns, self._on_pin_event, priority=PRIO_HW)
 
     def _on_pin_event(self) -> None:
+        """A sample that can move a pin is due. Its edges are made here, in a hardware event
+        at its own time, so their EXTI handlers run in this event once the pins are settled
+        (``Pin._apply(defer=...)``: same edge time and interrupt context, one kernel event
+        fewer per data-ready edge)."""
         self._pin_event = None
         t = self.kernel.now_ns
         self._t = t
         self._service(t)
-        self._refresh_pins(t)
+        fire = self._hw_edges = []
+        try:
+            self._refresh_pins(t)
+        finally:
+            self._hw_edges = None
+        for line, pin, t_edge in fire:  # after the chip's state is complete: ISRs may read it
+            pin._gpio._fire(line, pin, t_edge)
 
     def _warn_once(self, key: str, text: str) -> None:
         """Log a setting the datasheet calls reserved, once per kind (the chip just obeys)."""
@@ -478,6 +490,10 @@ class StSpiTarget(SpiTarget):
     def _set_pin(self, pin: Pin, level: int, t_ns: int) -> None:
         if pin.level != level or not pin.driven:
             now = self.kernel.now_ns
+            edges = self._hw_edges
+            if edges is not None and t_ns <= now:
+                pin._apply(level, now, edges)  # our own event: the handler runs at its end
+                return
             # high()/low() rather than set(): the level is known to be 0 or 1.
             (pin.high if level else pin.low)(t_ns if t_ns > now else now)
 

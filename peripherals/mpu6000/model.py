@@ -11,8 +11,12 @@ Facts are from shared/reference/sensors.md section 1. Decisions the datasheet le
   last; FIFO on: those pushed out by overflow) are skipped but still advance the filters, which
   is exact because the input is constant within a batch.
 * Kernel events exist only for the INT pin: one per sample while INT_ENABLE.DATA_RDY_EN is set
-  and a pin is wired (plus the 50 us pulse end), one at the predicted overflow time while
-  FIFO_OFLOW_EN is set. With nothing enabled, an idle chip costs nothing.
+  and a pin is wired, one at the predicted overflow time while FIFO_OFLOW_EN is set. With
+  nothing enabled, an idle chip costs nothing. The 50 us pulse end is not an event: the pin
+  returns lazily when nothing observes that edge (:meth:`board.gpio.Pin.pulse`), and the chip's
+  own view of INT (``_int_on``) compares the clock with the pulse end. The leading edge's EXTI
+  handler runs inside the chip's sample event (``sync``): PX4's driver sees the same edge time
+  in interrupt context, one kernel event per sample instead of three.
 * SPI clock. The datasheet allows 1 MHz (+10 %) for all registers and 20 MHz (+10 %) for reading
   INT_STATUS and the sensor data. The FIFO count and data port are served at 20 MHz too (PX4
   reads them on its fast clock and real parts deliver). Above 22 MHz nothing is decoded (MISO
@@ -68,10 +72,6 @@ DATA_CLOCK_LIMIT_HZ = 22_000_000
 # Register addresses used on hot paths.
 _INT_STATUS, _FIFO_COUNTH, _FIFO_R_W = 0x3A, 0x72, 0x74
 _DATA_RDY_INT, _FIFO_OFLOW_INT = 0x01, 0x10
-
-
-def _nothing() -> None:
-    pass
 
 
 def default_gyro_errors() -> AxisErrors:
@@ -146,10 +146,13 @@ class Mpu6000(SpiTarget):
         self._did_read = False
         # INT pin.
         self._int_active = False
+        #: End of the running INT pulse (-1: none, or a held latched level).
+        self._pulse_end_ns = -1
         self._drdy_entry: list | None = None
         self._ovf_entry: list | None = None
-        self._release_entry: list | None = None
-        self._pin_on = self._pin_off = _nothing
+        #: Pin drives for INT asserted and idle (0, 1, or None: released, open drain).
+        self._on_drive: int | None = 0
+        self._off_drive: int | None = 1
         self._retime()
         self._int_idle()
 
@@ -197,14 +200,14 @@ class Mpu6000(SpiTarget):
         self._schedule_int()
 
     def _on_int_pin_cfg(self, value: int, old: int) -> None:
-        if self._int_active and not value & 0x20:
+        if self._int_on() and not value & 0x20:
             self._int_active = False  # leaving latched mode ends a held level
         self._int_level()
         self._schedule_int()
 
     def _read_int_status(self, value: int) -> int:
         self.regs.values[_INT_STATUS] = 0
-        if self._int_active and self.regs.values[0x37] & 0x20:
+        if self._int_on() and self.regs.values[0x37] & 0x20:
             self._int_active = False
             self._int_level()
         return value
@@ -235,7 +238,6 @@ class Mpu6000(SpiTarget):
         self._fifo_last = 0
         self.engine.reset_filters()
         self._ready_ns = t_ns + RESET_TIME_NS
-        self._int_active = False
         self._retime()
         self._int_idle()
 
@@ -398,47 +400,63 @@ class Mpu6000(SpiTarget):
 
     # -- INT pin --------------------------------------------------------------------------------
 
+    def _int_on(self) -> bool:
+        """INT asserted now? A pulse ends by the clock, not by an event (module docstring)."""
+        if self._int_active and 0 <= self._pulse_end_ns <= self.kernel.now_ns:
+            self._int_active = False
+            self._pulse_end_ns = -1
+        return self._int_active
+
+    def _drive_pin(self, drive: int | None) -> None:
+        pin = self.drdy_pin
+        if drive is None:
+            pin.release()
+        elif drive:
+            pin.high()
+        else:
+            pin.low()
+
     def _int_level(self) -> None:
-        """Drive the pin to match ``_int_active`` and INT_PIN_CFG (level, open drain)."""
+        """Drive the pin to match the INT state and INT_PIN_CFG (level, open drain); a pulse
+        still running keeps its end, a latched configuration holds it."""
         pin = self.drdy_pin
         if pin is None or not self.powered:
             return
         cfg = self.regs.values[0x37]
         active_low = bool(cfg & 0x80)
-        # Bound methods for the per-sample path: assert, and return to idle.
-        self._pin_on = pin.low if active_low else pin.high
-        self._pin_off = pin.release if cfg & 0x40 else (pin.high if active_low else pin.low)
-        if self._int_active:
-            self._pin_on()
+        self._on_drive = 0 if active_low else 1
+        self._off_drive = None if cfg & 0x40 else (1 if active_low else 0)
+        if self._int_on():
+            if cfg & 0x20:
+                self._pulse_end_ns = -1  # latched: held until INT_STATUS is cleared
+            if self._pulse_end_ns >= 0:
+                pin.pulse(self._on_drive, self._off_drive, self._pulse_end_ns)
+            else:
+                self._drive_pin(self._on_drive)
         else:
-            self._pin_off()
+            self._drive_pin(self._off_drive)
 
     def _int_idle(self) -> None:
         self._int_active = False
+        self._pulse_end_ns = -1
         self._int_level()
 
     def _assert_int(self) -> None:
+        """Assert INT from a chip event (now): held when latched, else a 50 us pulse (a pulse
+        still running is extended)."""
         faults = self.faults
         if faults.drdy_stuck or faults.absent:
             return
         if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
-            if not self._int_active:
+            if not self._int_on():
                 self._int_active = True
-                self._pin_on()
+                self._pulse_end_ns = -1
+                self._drive_pin(self._on_drive)
             return
-        k = self.kernel
-        if self._int_active:  # a pulse still running: extend it
-            if self._release_entry is not None:
-                self._release_entry[3] = None
-        else:
-            self._int_active = True
-            self._pin_on()
-        self._release_entry = k.post(k.now_ns + INT_PULSE_NS, PRIO_HW, self._pulse_end, ())
-
-    def _pulse_end(self) -> None:
-        if self._int_active and not self.regs.values[0x37] & 0x20:
-            self._int_active = False
-            self._pin_off()
+        self._int_active = True
+        end = self._pulse_end_ns = self.kernel.now_ns + INT_PULSE_NS
+        # Not sync: the overflow event still re-arms after this (rare: a queued EXTI is fine).
+        self.drdy_pin.pulse(self._on_drive, self._off_drive, end)
 
     def _schedule_int(self) -> None:
         """(Re)arm the kernel events that move the INT pin; none when nothing can be seen."""
@@ -466,7 +484,8 @@ class Mpu6000(SpiTarget):
 
     def _on_drdy(self) -> None:
         """A sample is due: re-arm for the next one and pulse INT (:meth:`_assert_int`, inlined:
-        this is the 8 kHz path, and the two must stay alike)."""
+        this is the 8 kHz path, and the two must stay alike). The driver's EXTI handler runs
+        inside this event (``sync``), at this time, in interrupt context."""
         k = self.kernel
         now = k.now_ns
         self._drdy_entry = k.post(now + self._period, PRIO_HW, self._on_drdy, ())
@@ -474,18 +493,14 @@ class Mpu6000(SpiTarget):
         if faults.drdy_stuck or faults.absent:
             return
         if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
-            if not self._int_active:
+            if not self._int_on():
                 self._int_active = True
-                self._pin_on()
+                self._pulse_end_ns = -1
+                self._drive_pin(self._on_drive)
             return
-        if self._int_active:  # a pulse still running: extend it
-            entry = self._release_entry
-            if entry is not None:
-                entry[3] = None
-        else:
-            self._int_active = True
-            self._pin_on()
-        self._release_entry = k.post(now + INT_PULSE_NS, PRIO_HW, self._pulse_end, ())
+        self._int_active = True
+        end = self._pulse_end_ns = now + INT_PULSE_NS
+        self.drdy_pin.pulse(self._on_drive, self._off_drive, end, True)
 
     def _on_overflow(self) -> None:
         self._ovf_entry = None

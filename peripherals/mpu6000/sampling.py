@@ -168,19 +168,10 @@ class SampleEngine:
         lg = self._lsb_g
         gerr = self.gyro_err
         sg = gerr.p.noise_density * self._sigma_g * gerr.noise_scale * lg
-        gyro = []
-        append = gyro.append
-        for _ in range(m):
-            p *= a
-            append((round((gx + p * dx) * lg + sg * noise[pos]),
-                    round((gy + p * dy) * lg + sg * noise[pos + 1]),
-                    round((gz + p * dz) * lg + sg * noise[pos + 2])))
-            pos += 3
-        if max(map(max, gyro)) > 32767 or min(map(min, gyro)) < -32768:
-            gyro = [(_clamp(g[0]), _clamp(g[1]), _clamp(g[2])) for g in gyro]
-        self._g_state = (gx + p * dx, gy + p * dy, gz + p * dz)
 
-        # Accelerometer: a new reading per 1 ms tick, repeated in between.
+        # Accelerometer: a new reading per 1 ms tick, repeated in between. Its draws follow
+        # the gyro's 3 * m in the block (computed first here, drawn in that order as always).
+        apos = pos + 3 * m
         origin = self._acc_origin
         t_prev = self._acc_tick
         counts = self._acc_counts
@@ -209,10 +200,10 @@ class SampleEngine:
                 pa = self._a_a ** (tick - t_prev) if tick > t_prev else 1.0
                 sa = (xa[0] + pa * (sa[0] - xa[0]), xa[1] + pa * (sa[1] - xa[1]),
                       xa[2] + pa * (sa[2] - xa[2]))
-                counts = (_clamp(sa[0] * la + na * noise[pos]),
-                          _clamp(sa[1] * la + na * noise[pos + 1]),
-                          _clamp(sa[2] * la + na * noise[pos + 2]))
-                pos += 3
+                counts = (_clamp(sa[0] * la + na * noise[apos]),
+                          _clamp(sa[1] * la + na * noise[apos + 1]),
+                          _clamp(sa[2] * la + na * noise[apos + 2]))
+                apos += 3
                 t_prev = tick
             accel += [counts] * (j_end - j)
             j = j_end
@@ -220,10 +211,47 @@ class SampleEngine:
             self._a_state = sa
         self._acc_tick = t_prev
         self._acc_counts = counts
-
         if temp_enabled:
             self._temp_counts = _clamp((temp_c - 36.53) * 340.0)
         tc = self._temp_counts
+        rnd = round
+
+        if cols == _ACCEL_GYRO_COLS and not (self._standby or faults.frozen
+                                              or faults.random_data or faults.saturate):
+            # PX4's configuration: the FIFO records (accel then gyro) are built in the gyro
+            # loop itself, one flat list, one pack. Same arithmetic as the general path.
+            flat: list[int] = []
+            extend = flat.extend
+            gyro_last = (0, 0, 0)
+            for j in range(m):
+                p *= a
+                extend(accel[j])
+                gyro_last = (rnd((gx + p * dx) * lg + sg * noise[pos]),
+                             rnd((gy + p * dy) * lg + sg * noise[pos + 1]),
+                             rnd((gz + p * dz) * lg + sg * noise[pos + 2]))
+                extend(gyro_last)
+                pos += 3
+            self._g_state = (gx + p * dx, gy + p * dy, gz + p * dz)
+            if max(flat) > 32767 or min(flat) < -32768:
+                flat = [_clamp(v) for v in flat]
+                gyro_last = (flat[-3], flat[-2], flat[-1])
+            last = accel[-1] + (tc,) + gyro_last
+            self._last = last
+            return _PACK7(*last), _packer(len(flat))(*flat)
+
+        # Gyroscope: every sample is new.
+        gyro = []
+        append = gyro.append
+        for _ in range(m):
+            p *= a
+            append((rnd((gx + p * dx) * lg + sg * noise[pos]),
+                    rnd((gy + p * dy) * lg + sg * noise[pos + 1]),
+                    rnd((gz + p * dz) * lg + sg * noise[pos + 2])))
+            pos += 3
+        if max(map(max, gyro)) > 32767 or min(map(min, gyro)) < -32768:
+            gyro = [(_clamp(g[0]), _clamp(g[1]), _clamp(g[2])) for g in gyro]
+        self._g_state = (gx + p * dx, gy + p * dy, gz + p * dz)
+
         if self._standby or faults.frozen or faults.random_data or faults.saturate:
             rows = [ac + (tc,) + g for ac, g in zip(accel, gyro, strict=True)]
             rows = self._faults(rows, faults)
@@ -238,15 +266,8 @@ class SampleEngine:
         regs = _PACK7(*last)
         if not cols:
             return regs, b""
-        if cols == _ACCEL_GYRO_COLS:  # PX4's FIFO_EN: accel then gyro, no temperature
-            flat = []
-            extend = flat.extend
-            for ac, g in zip(accel, gyro):
-                extend(ac)
-                extend(g)
-        else:
-            rows = [ac + (tc,) + g for ac, g in zip(accel, gyro)]
-            flat = [row[c] for row in rows for c in cols]
+        rows = [ac + (tc,) + g for ac, g in zip(accel, gyro)]
+        flat = [row[c] for row in rows for c in cols]
         return regs, _packer(len(flat))(*flat)
 
     def _faults(self, rows: list[tuple[int, ...]], faults: FaultState) -> list[tuple[int, ...]]:

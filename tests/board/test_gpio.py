@@ -129,3 +129,26 @@ def test_detach_and_bad_arguments(kernel, gpio):
     kernel.run(100)
     with pytest.raises(ValueError, match="in the past"):
         pin.set(0, t_ns=50)
+
+
+def test_pulse_return_is_lazy_unless_observed(kernel, gpio):
+    """A pulse whose return edge nobody can see costs no event; the level is still right,
+    and attaching an observer mid-pulse turns the return back into a real edge."""
+    fall = []
+    pin = gpio.pin("PD15")
+    pin.attach_interrupt(lambda p, t: fall.append((t, kernel.in_isr)), rising=False, falling=True)
+    pin.high()
+    kernel.call_at(1_000, lambda: pin.pulse(0, 1, 1_050, sync=True))
+    kernel.run(1_000)
+    assert fall == [(1_000, True)] and pin.level == 0
+    assert len(kernel) == 0                  # no pulse-end event
+    kernel.run(1_049)
+    assert pin.level == 0
+    kernel.run(1_050)
+    assert pin.level == 1 and pin.driven
+    changes = []
+    kernel.call_at(2_000, lambda: pin.pulse(0, 1, 2_050, sync=True))
+    kernel.run(2_010)
+    pin.on_change(lambda p, t, level: changes.append((t, level)))
+    kernel.run(3_000)
+    assert changes == [(2_050, 1)] and fall[-1] == (2_000, True)
