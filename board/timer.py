@@ -1,9 +1,8 @@
 """STM32 general-purpose timer (TIM2..TIM5 style, plus BDTR.MOE for TIM1/TIM8), register level.
 
 Used for the IO's eight PWM outputs (TIM2/3/4), the FMU's AUX PWM (TIM1/TIM4) and PPM input
-capture. Firmware talks to it through :meth:`Timer.write` / :meth:`Timer.read` at the reference
-manual's offsets (RM0090 / RM0041 "TIMx registers"); the world sees PWM through
-``channel(n).on_pwm`` listeners.
+capture. Firmware uses :meth:`Timer.write` / :meth:`Timer.read` at the reference manual's offsets
+(RM0090 / RM0041 "TIMx registers"); the world sees PWM through ``channel(n).on_pwm``.
 
 No event per period. The counter is arithmetic: while counting, an *epoch* (anchor time,
 counter value at the anchor, active PSC and ARR) gives
@@ -56,6 +55,7 @@ REGISTERS: dict[int, tuple[str, int | None]] = {
     0x40: ("CCR4", 0), 0x44: ("BDTR", 0),
 }
 OFFSETS = {name: off for off, (name, _) in REGISTERS.items()}
+_CCR_INDEX = {"CCR1": 0, "CCR2": 1, "CCR3": 2, "CCR4": 3}  # Timer.write fast path
 
 # Bit positions (RM0090 / RM0041).
 CR1_CEN, CR1_UDIS, CR1_URS, CR1_OPM, CR1_DIR, CR1_CMS, CR1_ARPE = 1, 2, 4, 8, 0x10, 0x60, 0x80
@@ -144,13 +144,11 @@ class TimerChannel:
     def on_pwm(self, listener: PwmListener) -> None:
         """Call ``listener(t_ns, high_ns, period_ns)`` whenever the output waveform changes."""
         if not callable(listener):
-            raise TypeError(f"{self.timer.name} CH{self.n}: PWM listener {listener!r} is not "
-                             f"callable")
+            raise TypeError(f"{self.timer.name} CH{self.n}: PWM listener {listener!r} not callable")
         self._listeners.append(listener)
 
     def remove_pwm_listener(self, listener: PwmListener) -> None:
-        """Undo :meth:`on_pwm`."""
-        self._listeners.remove(listener)
+        self._listeners.remove(listener)  # undo on_pwm
 
     @property
     def pulse_ns(self) -> int:
@@ -169,8 +167,7 @@ class TimerChannel:
     def bind_input(self, pin: Pin) -> None:
         """Connect ``pin`` to this channel's TIx input (input capture when CCxS = 01)."""
         if not isinstance(pin, Pin):
-            raise TypeError(f"{self.timer.name} CH{self.n}: bind_input needs a Pin, "
-                             f"got {pin!r}")
+            raise TypeError(f"{self.timer.name} CH{self.n}: bind_input needs a Pin, got {pin!r}")
         if self.pin is not None:
             self.pin.remove_listener(self._on_edge)
         self.pin = pin
@@ -228,6 +225,14 @@ class Timer:
                              f"got {value!r}")
         t = self.kernel.context_ns
         self._sync(t)
+        if name in _CCR_INDEX:  # the mixer rewrites CCRs up to 400 times a second
+            i = _CCR_INDEX[name]
+            before = self._ccr_active[i]
+            self._w_ccr(name, value, t)
+            self._reschedule(t)
+            if self._ccr_active[i] != before:  # else (preloaded: until the UEV) no wave changed
+                self._notify(t)
+            return
         getattr(self, "_w_" + name.lower(), self._w_plain)(name, value, t)
         self._reschedule(t)
         self._notify(t)
@@ -346,14 +351,10 @@ class Timer:
         if not self._oc_preload(n):
             self._ccr_active[n - 1] = value & self.top
 
-    _w_ccr1 = _w_ccr2 = _w_ccr3 = _w_ccr4 = _w_ccr
-
     def _r_ccr(self, n: int, t: int) -> int:
         if n <= len(self._ch) and self._is_input(n):
             self._regs["SR"] &= ~cc_if(n)  # reading a capture clears CCxIF
         return self._regs[f"CCR{n}"]
-
-    # -- channel configuration decoding -----------------------------------------------------
 
     def _ccmr_bits(self, n: int) -> int:
         reg = self._regs["CCMR1" if n <= 2 else "CCMR2"]

@@ -60,8 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="virtual seconds the flight may take before it counts as failed")
     p.add_argument("--speed", type=float, default=None,
                    help="pace to the wall clock times this factor (default: as fast as possible)")
-    p.add_argument("--quantum-us", type=float, default=1000.0,
-                   help="lockstep quantum in microseconds (default 1000)")
+    p.add_argument("--quantum-us", type=float, default=500.0,
+                   help="lockstep quantum in microseconds (default 500, hil.system)")
     p.add_argument("--out", default="out", help="output folder: log, plot, FRAM, SD card")
     p.add_argument("--airframe", type=int, default=4011, help="SYS_AUTOSTART (default 4011, F450)")
     p.add_argument("--one-process", action="store_true",

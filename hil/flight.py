@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.gcs import GcsClient
-from hil.system import SystemConfig, build_system
+from hil.system import DEFAULT_QUANTUM_NS, SystemConfig, build_system
 
 __all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
 
@@ -37,7 +37,7 @@ class FlightConfig:
     seed: int = 1
     out_dir: str = "out"
     airframe: int = 4011
-    quantum_ns: int = 1_000_000
+    quantum_ns: int = DEFAULT_QUANTUM_NS  # 500 us, see hil.system
     speed: float | None = None
     mode: str = "process"
     altitude_m: float = 10.0

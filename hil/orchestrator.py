@@ -170,42 +170,63 @@ class Orchestrator:
         inbox = self._inbox
         next_ns = self._next_ns
         skip = self.skip_idle
+        dead = self.dead
+        check_alive = not self.quanta & 15  # a skipped board's process is checked every 16
         live = []
+        trace = self._trace
         sent: dict[str, list] = {}
         for name, handle in self.handles.items():
-            if name in self.dead:
+            if dead and name in dead:
                 continue
             inputs = inbox[name]
             if skip and not inputs:
                 due = next_ns[name]
-                if (due is None or due > until) and (self.quanta & 15 or handle.is_alive()):
-                    continue  # idle; a skipped board's process is still checked every 16 quanta
-            inbox[name] = []
-            sent[name] = inputs
+                if (due is None or due > until) and (not check_alive or handle.is_alive()):
+                    continue  # idle
+            inbox[name] = []  # a fresh list: this quantum's outputs are routed into it
+            if trace is not None:
+                sent[name] = inputs
             handle.post_advance(start, until, inputs)
             live.append((name, handle))
         self.exchanges += len(live)
         world = self.world
         if world is not None:
             world.run_until(until)
-            for port, t_ns, payload in world.outputs(until):
-                self._route(WORLD, port, t_ns, payload)
+            out = world.outputs(until)
+            if out:
+                self._route_all(WORLD, out)
         for name, handle in live:
             try:
                 outputs, next_ns[name] = handle.wait_advance()
             except BoardDied as died:
                 self._board_died(name, died.detail, until)
                 continue
-            if self._trace is not None:
-                self._trace.write(name, until, sent[name], outputs)
-            for port, t_ns, payload in outputs:
-                self._route(name, port, t_ns, payload)
+            if trace is not None:
+                trace.write(name, until, sent[name], outputs)
+            if outputs:
+                self._route_all(name, outputs)
         self.t_ns = until
         self.quanta += 1
         for hook in self.on_quantum:
             hook(self)
         if self.speed is not None:
             self._pace()
+
+    def _route_all(self, board: str, records: list) -> None:
+        """:meth:`_route` for a list of records (the per-quantum path, inlined)."""
+        routes = self._routes
+        inbox = self._inbox
+        dead = self.dead
+        for rec in records:
+            dsts = routes.get((board, rec[0]))
+            if not dsts:
+                continue  # an output nothing is wired to (an unconnected pin) goes nowhere
+            for dst_board, dst_port in dsts:
+                if dst_board == WORLD:
+                    self.world.input(dst_port, rec[1], rec[2])
+                elif dst_board not in dead:
+                    inbox[dst_board].append(rec if dst_port == rec[0]
+                                            else (dst_port, rec[1], rec[2]))
 
     def _route(self, board: str, port: str, t_ns: int, payload: Any) -> None:
         dsts = self._routes.get((board, port))

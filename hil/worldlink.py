@@ -7,6 +7,7 @@ tuple in :data:`TRUTH_FIELDS` order) and ``battery`` (voltage, current). Inputs:
 
 from __future__ import annotations
 
+from operator import attrgetter
 from typing import Any
 
 from hil.world import World
@@ -15,10 +16,12 @@ from hil.world.truth import Truth
 __all__ = ["WorldPorts", "TRUTH_FIELDS", "truth_record", "truth_from_record"]
 
 TRUTH_FIELDS: tuple[str, ...] = tuple(Truth.__dataclass_fields__)
+#: one C call instead of a generator over 19 getattr calls (truth leaves every world step)
+_truth_fields = attrgetter(*TRUTH_FIELDS)
 
 
 def truth_record(truth: Truth) -> tuple:
-    return tuple(getattr(truth, name) for name in TRUTH_FIELDS)
+    return _truth_fields(truth)
 
 
 def truth_from_record(record: tuple) -> Truth:
@@ -50,11 +53,12 @@ class WorldPorts:
             w.run_until(t_ns)
         else:
             every = self.truth_every_steps
-            out = self._out
-            while w.t_ns + w.dt_ns <= t_ns:
-                w.step()
+            append = self._out.append
+            step, truth, dt_ns = w.step, w.truth, w.dt_ns
+            while w.t_ns + dt_ns <= t_ns:
+                step()
                 if w.steps % every == 0:
-                    out.append(("truth", w.t_ns, truth_record(w.truth())))
+                    append(("truth", w.t_ns, _truth_fields(truth())))
         if wired is None or "battery" in wired:
             self._out.append(("battery", w.t_ns, (w.battery.voltage_v, w.battery.current_a)))
 

@@ -20,6 +20,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
+from math import isnan
 
 from ioproc.protocol import ERA, Era
 
@@ -103,13 +104,22 @@ class PwmLimit:
                 else:
                     lows.append(min_pwm[i])
         else:
-            lows = list(min_pwm[:n])
+            lows = min_pwm
+        # _to_uint16 and _half inlined (this runs for every output on every 1 ms IO pass);
+        # the expression order is the C code's, see the module docstring.
         result = []
         for i in range(n):
             value = outputs[i]
             if reverse_mask & (1 << i):
                 value = -value
             lo, hi = lows[i], max_pwm[i]
-            pwm = _to_uint16(value * (hi - lo) / 2.0 + _half(hi + lo))
-            result.append(lo if pwm < lo else (min(pwm, hi)))
+            mid = hi + lo
+            v = value * (hi - lo) / 2.0 + (mid // 2 if mid >= 0 else int(mid / 2))
+            if isnan(v) or v <= 0.0:  # NaN or negative: VCVT saturates to 0
+                pwm = 0
+            elif v >= 65535.0:
+                pwm = 0xFFFF
+            else:
+                pwm = int(v)
+            result.append(lo if pwm < lo else (hi if pwm > hi else pwm))  # noqa: FURB136
         return result

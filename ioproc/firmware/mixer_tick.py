@@ -22,6 +22,7 @@ from ioproc.protocol import (
     PageNo,
     RcInput,
     Setup,
+    Status,
     float_to_reg,
     reg_to_float,
 )
@@ -33,6 +34,7 @@ __all__ = ["FMU_INPUT_DROP_LIMIT_US", "MixSource", "MixerTick"]
 FMU_INPUT_DROP_LIMIT_US = 500_000
 
 F = SF
+_FLAGS, _ALARMS, _ARMING = int(Status.FLAGS), int(Status.ALARMS), int(Setup.ARMING)
 
 
 class MixSource(Enum):
@@ -62,6 +64,19 @@ class MixerTick:
         self._fs_cache: dict[int, int] = {}
         self._controls = regs.page(PageNo.CONTROLS)
         self._rc = regs.page(PageNo.RC_INPUT)
+        # Live page lists (RegisterFile never replaces them), looked up once: a pass runs every
+        # millisecond, and the page() and status_flags lookups were a fifth of its cost.
+        self._status = regs.page(PageNo.STATUS)
+        self._setup = regs.page(PageNo.SETUP)
+        self._servos = regs.page(PageNo.SERVOS)
+        self._actuators = regs.page(PageNo.ACTUATORS)
+        self._disarmed = regs.page(PageNo.DISARMED_PWM)
+        self._min_pwm = regs.page(PageNo.CONTROL_MIN_PWM)
+        self._max_pwm = regs.page(PageNo.CONTROL_MAX_PWM)
+        #: (key, outputs, actuator registers) of the last mix. The mixers are pure functions of
+        #: the control pages, so a pass whose inputs did not change (the FMU writes controls at
+        #: most every ~2.5 ms, the loop runs every 1 ms) reuses the outputs bit for bit.
+        self._mix_memo: tuple | None = None
         self._get_control = {
             MixSource.FMU: self._control_fmu,
             MixSource.OVERRIDE: self._control_rc,
@@ -87,13 +102,13 @@ class MixerTick:
     # -- the pass ----------------------------------------------------------------------------
     def check_fmu(self, now_us: int) -> None:
         """FMU_OK / FMU_LOST from the age of the last CONTROLS or DIRECT_PWM write."""
-        regs = self.regs
-        last = regs.fmu_data_received_us
+        last = self.regs.fmu_data_received_us
+        status = self._status
         if last is None or now_us - last > FMU_INPUT_DROP_LIMIT_US:
-            regs.status_flags &= ~F.FMU_OK
-            regs.alarms |= AL.FMU_LOST
+            status[_FLAGS] &= ~F.FMU_OK
+            status[_ALARMS] |= AL.FMU_LOST
         else:
-            regs.status_flags |= F.FMU_OK | F.FMU_INITIALIZED
+            status[_FLAGS] |= F.FMU_OK | F.FMU_INITIALIZED
 
     def _select_source(self, flags: int, arming: int) -> MixSource:
         override_ok = (flags & F.OVERRIDE and flags & F.RC_OK and flags & F.MIXER_OK
@@ -110,8 +125,9 @@ class MixerTick:
 
     def tick(self, now_us: int) -> None:
         regs = self.regs
+        status = self._status
         self.check_fmu(now_us)
-        flags, arming = regs.status_flags, regs.arming
+        flags, arming = status[_FLAGS], self._setup[_ARMING]
         source = self._select_source(flags, arming)
         should_arm = bool(
             flags & F.INIT_OK and flags & F.SAFETY_OFF
@@ -125,13 +141,13 @@ class MixerTick:
         if arming & AR.FORCE_FAILSAFE:
             source = MixSource.FAILSAFE
         if source is MixSource.FAILSAFE:
-            regs.status_flags |= F.FAILSAFE
+            status[_FLAGS] |= F.FAILSAFE
         else:
-            regs.status_flags &= ~F.FAILSAFE
+            status[_FLAGS] &= ~F.FAILSAFE
         self.source, self.should_arm, self.always_pwm = source, should_arm, always_pwm
 
-        servos = regs.page(PageNo.SERVOS)
-        actuators = regs.page(PageNo.ACTUATORS)
+        servos = self._servos
+        actuators = self._actuators
         if source is MixSource.FAILSAFE:
             failsafe = regs.page(PageNo.FAILSAFE_PWM)
             cache = self._fs_cache
@@ -141,36 +157,59 @@ class MixerTick:
                 if reg is None:
                     reg = cache[us] = float_to_reg((us - 1500) / 600.0)
                 actuators[i] = reg
-        elif source is not MixSource.NONE and regs.status_flags & F.MIXER_OK:
-            outputs = regs.mixer.group.mix(self._get_control[source], SERVO_COUNT)
+        elif source is not MixSource.NONE and status[_FLAGS] & F.MIXER_OK:
+            outputs, act = self._mix(source)
             mixed = len(outputs)
-            pwm = self.limit.calc(should_arm, now_us, regs.page(PageNo.DISARMED_PWM),
-                                  regs.page(PageNo.CONTROL_MIN_PWM),
-                                  regs.page(PageNo.CONTROL_MAX_PWM), outputs)
+            pwm = self.limit.calc(should_arm, now_us, self._disarmed, self._min_pwm,
+                                  self._max_pwm, outputs)
             for i in range(SERVO_COUNT):
-                servos[i] = pwm[i] if i < mixed else 0
                 if i < mixed:
-                    actuators[i] = float_to_reg(outputs[i])
+                    servos[i] = pwm[i]
+                    actuators[i] = act[i]
+                else:
+                    servos[i] = 0
 
-        need = (should_arm or always_pwm) and not regs.arming & AR.LOCKDOWN
+        need = (should_arm or always_pwm) and not self._setup[_ARMING] & AR.LOCKDOWN
         pwm_out = self.pwm
         if need and not self.servos_armed:
             pwm_out.arm(True)
             self.servos_armed = True
-            regs.status_flags |= F.OUTPUTS_ARMED
+            status[_FLAGS] |= F.OUTPUTS_ARMED
         elif not need and self.servos_armed:
             pwm_out.arm(False)
             self.servos_armed = False
-            regs.status_flags &= ~F.OUTPUTS_ARMED
+            status[_FLAGS] &= ~F.OUTPUTS_ARMED
         if self.servos_armed and should_arm:
-            for i in range(SERVO_COUNT):
-                pwm_out.set(i, servos[i])
+            self._set_pwm(servos)
             self._sbus(servos, now_us)
         elif self.servos_armed and always_pwm:
-            disarmed = regs.page(PageNo.DISARMED_PWM)
-            for i in range(SERVO_COUNT):
-                pwm_out.set(i, disarmed[i])
+            self._set_pwm(self._disarmed)
             self._sbus(servos, now_us)
+
+    def _mix(self, source: MixSource) -> tuple[list[float], list[int]]:
+        """The mixer group's outputs and their ACTUATORS registers, memoised on the inputs."""
+        group = self.regs.mixer.group
+        if source is MixSource.FMU:
+            key: tuple = (source, group, group.version, tuple(self._controls))
+        else:
+            key = (source, group, group.version, tuple(self._controls), tuple(self._rc))
+        memo = self._mix_memo
+        if memo is not None and memo[0] == key:
+            return memo[1], memo[2]
+        outputs = group.mix(self._get_control[source], SERVO_COUNT)
+        act = [float_to_reg(v) for v in outputs]
+        self._mix_memo = (key, outputs, act)
+        return outputs, act
+
+    def _set_pwm(self, pulses: list[int]) -> None:
+        """up_pwm_servo_set for every output, skipping the (unobservable) unchanged ones here
+        rather than in a call per output."""
+        pwm_out = self.pwm
+        shadow = pwm_out._ccr
+        for i in range(SERVO_COUNT):
+            us = pulses[i]
+            if shadow[i] != (us - 1 if us > 0 else 0):
+                pwm_out.set(i, us)
 
     def _sbus(self, servos: list[int], now_us: int) -> None:
         if self._sbus_out is None:

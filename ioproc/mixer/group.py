@@ -10,13 +10,17 @@ class MixerGroup:
 
     def __init__(self) -> None:
         self.mixers: list[Mixer] = []
+        #: bumped on every change, so that callers may memoise :meth:`mix` on their inputs
+        self.version = 0
 
     def add(self, mixer: Mixer) -> None:
         self.mixers.append(mixer)
+        self.version += 1
 
     def reset(self) -> None:
         """Drop every mixer (mixer upload action 0)."""
         self.mixers.clear()
+        self.version += 1
 
     def __len__(self) -> int:
         return len(self.mixers)
