@@ -42,18 +42,43 @@ class HrtCall:
         self._entry = k.post(t_ns, PRIO_ISR, self._fire, ())
 
     def _fire(self) -> None:
+        k = self.hrt.kernel
+        t_ns = self.deadline_us * NS_PER_US
+        if t_ns > k.now_ns:
+            # The deadline was pushed later by :meth:`rearm_after` while this entry was
+            # pending: move on to it instead of firing (one heap entry per watchdog period,
+            # not one per re-arm).
+            self._entry = k.post(t_ns, PRIO_ISR, self._fire, ())
+            return
         self.fired = True
         if self.period_us:
             self.deadline_us += self.period_us
             self._arm()
         else:
             self._entry = None
-        k = self.hrt.kernel
         k.in_isr = True
         try:
             self.fn(*self.args)
         finally:
             k.in_isr = False
+
+    def rearm_after(self, delay_us: int) -> None:
+        """Make this one-shot call fire ``delay_us`` from now instead (PX4's re-arming of a
+        watchdog with ``ScheduleDelayed``). A later deadline than the pending one only moves
+        the deadline; the pending entry re-posts itself when it comes up."""
+        k = self.hrt.kernel
+        deadline = (k.now_ns + k.busy_ns) // NS_PER_US + delay_us
+        e = self._entry
+        if e is not None and e[3] is not None and not self.period_us \
+                and e[0] <= deadline * NS_PER_US:
+            self.deadline_us = deadline
+            return
+        if e is not None:
+            e[3] = None
+        self.deadline_us = deadline
+        self.period_us = 0
+        self.fired = False
+        self._arm()
 
     def cancel(self) -> None:
         if self._entry is not None:

@@ -86,7 +86,7 @@ class PollWaiter:
     def _finish(self) -> None:
         self._done = True
         k = self.platform.kernel
-        k.call_at(k.now_ns + k.busy_ns, self._resume, priority=self.priority)
+        k.post(k.now_ns + k.busy_ns, self.priority, self._resume, ())  # call_at, unchecked
 
     def _resume(self) -> None:
         # Callbacks are removed here, not in _wake, so a publisher's callback list is never

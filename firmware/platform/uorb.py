@@ -11,6 +11,7 @@ code reuses its struct. Subscribers receive the stored snapshot and must treat i
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING, Any, Callable
 
 from firmware.platform.msgdef import MessageDef, MessageRegistry, default_registry
@@ -29,7 +30,7 @@ class TopicNode:
     """One instance of one topic: latest message, generation, optional queue, callbacks."""
 
     __slots__ = ("meta", "name", "instance", "generation", "queue_len", "buf", "last",
-                 "callbacks", "advertised", "last_publish_ns", "publish_count", "lost",
+                 "callbacks", "advertised", "last_publish_ns", "lost",
                  "_kernel")
 
     def __init__(self, meta: MessageDef, name: str, instance: int, hrt: Hrt) -> None:
@@ -43,21 +44,26 @@ class TopicNode:
         self.callbacks: list[Callable[[], None]] = []
         self.advertised = False
         self.last_publish_ns = 0
-        self.publish_count = 0
         self.lost = 0
         self._kernel = hrt.kernel
 
     def publish(self, msg: Any) -> None:
-        snap = msg.copy()
-        gen = self.generation + 1
-        self.generation = gen
+        # One copy per publication (the snapshot subscribers share); the ring slot and
+        # ``last`` hold the same object. ``publish_count`` is the generation, so one counter
+        # is updated, not two.
+        self.last = snap = msg.copy()
+        self.generation = gen = self.generation + 1
         self.buf[gen % self.queue_len] = snap
-        self.last = snap
-        self.publish_count += 1
         k = self._kernel
         self.last_publish_ns = k.now_ns + k.busy_ns
-        for cb in self.callbacks:
-            cb()
+        if self.callbacks:
+            for cb in self.callbacks:
+                cb()
+
+    @property
+    def publish_count(self) -> int:
+        """Messages published on this instance since boot (the generation counter)."""
+        return self.generation
 
 
 class Publication:
@@ -168,6 +174,26 @@ class Subscription:
         self.last_gen = nxt
         return node.buf[nxt % qlen]
 
+    def update_all(self) -> list[Any]:
+        """Every unread message, oldest first, as repeated :meth:`update` calls would return
+        them (losses counted the same way), in one call: a consumer that walks a 1 kHz queue
+        saves a call per sample."""
+        node = self.node
+        g = node.generation
+        last = self.last_gen
+        if g == last:
+            return []
+        self.last_gen = g
+        qlen = node.queue_len
+        if qlen == 1:
+            return [node.last]
+        nxt = last + 1
+        if g - nxt >= qlen:
+            node.lost += g - qlen + 1 - nxt
+            nxt = g - qlen + 1
+        buf = node.buf
+        return [buf[i % qlen] for i in range(nxt, g + 1)]
+
     def copy(self) -> Any:
         """The latest message (or None), marking everything as read."""
         self.last_gen = self.node.generation
@@ -190,7 +216,7 @@ class SubscriptionInterval(Subscription):
     does not alias down when messages arrive slightly early or late.
     """
 
-    __slots__ = ("interval_us", "last_update_us", "_hrt")
+    __slots__ = ("interval_us", "last_update_us", "_hrt", "_kernel")
 
     def __init__(self, broker: Broker, topic: str, interval_us: int, instance: int = 0) -> None:
         super().__init__(broker, topic, instance)
@@ -198,31 +224,45 @@ class SubscriptionInterval(Subscription):
             raise ValueError(f"interval must be >= 0 us, got {interval_us}")
         self.interval_us = interval_us
         self._hrt = broker.hrt
+        self._kernel = broker.hrt.kernel
         self.last_update_us = -(1 << 62)
 
     def updated(self) -> bool:
-        return (self.node.generation != self.last_gen
-                and self._hrt.absolute_time() - self.last_update_us >= self.interval_us)
+        if self.node.generation == self.last_gen:
+            return False
+        k = self._kernel
+        return (k.now_ns + k.busy_ns) // 1000 - self.last_update_us >= self.interval_us
 
     def update(self) -> Any:
-        if not self.updated():
+        node = self.node
+        if node.generation == self.last_gen:  # nothing new: no time read at all
             return None
-        now = self._hrt.absolute_time()
+        k = self._kernel
+        now = (k.now_ns + k.busy_ns) // 1000  # hrt_absolute_time(), read once
         iv = self.interval_us
-        nxt = self.last_update_us + iv
+        last = self.last_update_us
+        if now - last < iv:
+            return None
+        nxt = last + iv
         # Keep the cadence when this update came at most one interval late (so the rate does
         # not alias down by jitter); otherwise restart the cadence from now.
         self.last_update_us = nxt if now - iv < nxt <= now else now
-        return self.copy()
+        self.last_gen = node.generation
+        return node.last
 
 
 class SubscriptionCallback(Subscription):
     """A subscription that schedules a work item whenever the topic is published.
 
-    With ``interval_us`` the item is scheduled at most once per interval.
+    With ``interval_us`` the item is scheduled at most once per interval. With
+    ``required_updates`` n > 1 (PX4's ``set_required_updates``) it is scheduled only once n
+    messages are unread, so a consumer of a queued 1 kHz topic can wake at a fraction of the
+    rate and walk the queue: the way PX4 limits ``vehicle_angular_velocity`` to
+    IMU_GYRO_RATEMAX without losing a sample.
     """
 
-    __slots__ = ("work_item", "interval_us", "last_call_us", "_hrt", "_registered")
+    __slots__ = ("work_item", "interval_us", "last_call_us", "_hrt", "_registered",
+                 "required_updates", "_cb")
 
     def __init__(self, work_item: WorkItem, broker: Broker, topic: str, instance: int = 0,
                  interval_us: int = 0) -> None:
@@ -232,18 +272,42 @@ class SubscriptionCallback(Subscription):
         self.last_call_us = -(1 << 62)
         self._hrt = broker.hrt
         self._registered = False
+        self.required_updates = 1
+        self._cb: Callable[[], None] | None = None
+
+    def set_required_updates(self, n: int) -> None:
+        """Schedule the item only when ``n`` messages are unread (clamped to the queue)."""
+        n = max(1, min(int(n), self.node.queue_len))
+        if n == self.required_updates:
+            return
+        registered = self._registered
+        if registered:
+            self.unregister_callback()
+        self.required_updates = n
+        if registered:
+            self.register_callback()
+
+    def _choose(self) -> Callable[[], None]:
+        if self.interval_us:
+            return self._call
+        if self.required_updates > 1:
+            return self._call_required
+        # The common case: queue the item directly (a C-level partial, no Python frame for
+        # schedule_now per publication).
+        item = self.work_item
+        return partial(item.wq.add, item)
 
     def register_callback(self) -> bool:
         if not self._registered:
-            self.node.callbacks.append(self._call if self.interval_us else
-                                       self.work_item.schedule_now)
+            self._cb = cb = self._choose()
+            self.node.callbacks.append(cb)
             self._registered = True
         return True
 
     def unregister_callback(self) -> None:
         if self._registered:
-            cb = self._call if self.interval_us else self.work_item.schedule_now
-            self.node.callbacks.remove(cb)
+            self.node.callbacks.remove(self._cb)
+            self._cb = None
             self._registered = False
 
     @property
@@ -254,4 +318,8 @@ class SubscriptionCallback(Subscription):
         now = self._hrt.absolute_time()
         if now - self.last_call_us >= self.interval_us:
             self.last_call_us = now
+            self.work_item.schedule_now()
+
+    def _call_required(self) -> None:
+        if self.node.generation - self.last_gen >= self.required_updates:
             self.work_item.schedule_now()

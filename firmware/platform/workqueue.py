@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from heapq import heappush as _heappush
 from typing import TYPE_CHECKING
 
 from board.kernel import PRIO_THREAD, Kernel, KernelError
@@ -53,7 +54,7 @@ class WorkQueue:
     """One work queue: a FIFO of items run to completion at this queue's thread priority."""
 
     __slots__ = ("kernel", "config", "name", "_q", "_armed", "busy_until_ns", "_kprio",
-                 "items", "run_count", "busy_ns_total")
+                 "items", "run_count", "busy_ns_total", "_heap", "_disp")
 
     def __init__(self, kernel: Kernel, config: WqConfig) -> None:
         self.kernel = kernel
@@ -67,6 +68,10 @@ class WorkQueue:
         self.items: list[WorkItem] = []
         self.run_count = 0
         self.busy_ns_total = 0
+        # Dispatch events go straight onto the kernel's heap (what Kernel.post does, without
+        # the call): one per work item run, the platform's most frequent event.
+        self._heap = kernel._queue
+        self._disp = self._dispatch
 
     def add(self, item: WorkItem) -> None:
         if item._queued:
@@ -79,7 +84,8 @@ class WorkQueue:
             t = k.now_ns + k.busy_ns
             if self.busy_until_ns > t:
                 t = self.busy_until_ns
-            k.post(t, self._kprio, self._dispatch, ())
+            k._seq = seq = k._seq + 1
+            _heappush(self._heap, [t, self._kprio, seq, self._disp, ()])
 
     def remove(self, item: WorkItem) -> None:
         if item._queued:
@@ -88,7 +94,8 @@ class WorkQueue:
 
     def _dispatch(self) -> None:
         k = self.kernel
-        item = self._q.popleft()
+        q = self._q
+        item = q.popleft()
         item._queued = False
         try:
             item.run()
@@ -103,9 +110,10 @@ class WorkQueue:
         item.busy_ns_total += cost
         self.run_count += 1
         self.busy_ns_total += cost
-        self.busy_until_ns = k.now_ns + cost
-        if self._q:
-            k.post(self.busy_until_ns, self._kprio, self._dispatch, ())
+        self.busy_until_ns = t = k.now_ns + cost
+        if q:
+            k._seq = seq = k._seq + 1
+            _heappush(self._heap, [t, self._kprio, seq, self._disp, ()])
         else:
             self._armed = False
 
@@ -164,6 +172,10 @@ class WorkItem:
 
     def schedule_delayed(self, delay_us: int) -> None:
         """Run once, ``delay_us`` from now (replacing any pending delayed/interval schedule)."""
+        c = self._hrt_call
+        if c is not None and not c.period_us and delay_us >= 0:
+            c.rearm_after(delay_us)  # drivers re-arm a watchdog every cycle: reuse the call
+            return
         self._cancel_hrt()
         self._hrt_call = self.platform.hrt.call_after(delay_us, self.wq.add, self)
 

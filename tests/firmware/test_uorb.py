@@ -148,3 +148,40 @@ def test_callback_subscription_with_interval_limits_scheduling(platform, kernel)
     kernel.call_every(NS_PER_MS, pub.publish, msg, first_ns=NS_PER_MS)
     kernel.run(20 * NS_PER_MS)
     assert runs == [1000, 6000, 11000, 16000]
+
+
+def test_callback_subscription_with_required_updates_walks_the_queue(platform, kernel):
+    """PX4's set_required_updates: wake once n messages are unread, none lost (sensor_gyro
+    queues 8)."""
+    orb = platform.orb
+    runs = []
+
+    class Batch(WorkItem):
+        def __init__(self):
+            super().__init__(platform, "batch", "wq:rate_ctrl")
+            self.sub = SubscriptionCallback(self, orb, "sensor_gyro")
+            self.sub.register_callback()
+            self.sub.set_required_updates(3)
+
+        def run(self):
+            runs.append((kernel.now_ns // NS_PER_US,
+                         [m.timestamp for m in iter(self.sub.update, None)]))
+
+    b = Batch()
+    assert b.sub.required_updates == 3 and b.sub.registered
+    pub = orb.advertise("sensor_gyro")
+    msg = orb.new("sensor_gyro")
+
+    def publish():
+        msg.timestamp = kernel.now_ns // NS_PER_US
+        pub.publish(msg)
+
+    kernel.call_every(NS_PER_MS, publish, first_ns=NS_PER_MS)
+    kernel.run(10 * NS_PER_MS)
+    assert runs == [(3000, [1000, 2000, 3000]), (6000, [4000, 5000, 6000]),
+                    (9000, [7000, 8000, 9000])]
+    b.sub.set_required_updates(100)  # clamped to the queue length
+    assert b.sub.required_updates == 8
+    b.sub.unregister_callback()
+    kernel.run(30 * NS_PER_MS)
+    assert len(runs) == 3

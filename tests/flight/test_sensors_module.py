@@ -90,9 +90,10 @@ def test_outputs_and_rates_follow_the_sensors(bench: Bench) -> None:
     before = {t: bench.node(t).publish_count for t in topics}
     bench.run_s(2.0)
     n = {t: (bench.node(t).publish_count - before[t]) / 2.0 for t in topics}
-    # vehicle_angular_velocity: one message per sample of the selected gyro (MPU6000, 1 kHz)
+    # vehicle_angular_velocity: IMU_GYRO_RATEMAX 400 Hz on a 1 kHz gyro (MPU6000) is one
+    # message per 3 samples (PX4 rounds 2.5 samples up), 333 Hz
     assert abs(n["sensor_gyro"] - 1000) <= 3
-    assert abs(n["vehicle_angular_velocity"] - n["sensor_gyro"]) <= 1
+    assert abs(n["vehicle_angular_velocity"] - n["sensor_gyro"] / 3) <= 2
     assert abs(n["sensor_combined"] - 250) <= 2  # IMU_INTEG_RATE
     assert abs(n["vehicle_air_data"] - 20) <= 1  # SENS_BARO_RATE
     assert abs(n["vehicle_magnetometer"] - 15) <= 1  # SENS_MAG_RATE
@@ -203,13 +204,14 @@ def test_primary_imu_dropping_off_the_bus_fails_over_within_bounded_time() -> No
     comb = b.node("sensor_combined").last
     assert comb.gyro_device_id == gyro_ids[1]
     assert comb.accel_device_id == b.node("sensor_accel", 1).last.device_id
-    # the rate output now follows the L3GD20: one message per sample, 760 Hz
+    # the rate output now follows the L3GD20 (760 Hz): IMU_GYRO_RATEMAX 400 Hz is one
+    # message per 2 samples, 380 Hz
     n_gyro = b.node("sensor_gyro", 1).publish_count
     n_avel = b.node("vehicle_angular_velocity").publish_count
     b.run_s(1.0)
     d_gyro = b.node("sensor_gyro", 1).publish_count - n_gyro
     d_avel = b.node("vehicle_angular_velocity").publish_count - n_avel
-    assert abs(d_gyro - 760) < 10 and abs(d_avel - d_gyro) <= 2, (d_gyro, d_avel)
+    assert abs(d_gyro - 760) < 10 and abs(d_avel - d_gyro / 2) <= 2, (d_gyro, d_avel)
     # and stays sane: gravity still seen by the LSM303D, rates still ~0
     acc = b.mean("sensor_combined", "accelerometer_m_s2", 0.3)
     assert abs(math.sqrt(sum(a * a for a in acc)) - 9.81) < 0.3
@@ -229,3 +231,18 @@ def test_frozen_compass_is_dropped_for_the_internal_one() -> None:
     st = b.node("sensors_status_mag").last
     assert st.device_id_primary == internal and st.failover_count == 1 and not st.healthy[1]
     assert b.node("vehicle_magnetometer").last.device_id == internal
+
+
+def test_gyro_ratemax_sets_the_rate_controller_loop_rate() -> None:
+    """IMU_GYRO_RATEMAX 1000 on the 1 kHz MPU6000: a vehicle_angular_velocity per sample; the
+    default 400 wakes the module every 3rd sample (PX4 rounds 2.5 up)."""
+    b = Bench(seed=5)
+    b.params.set("IMU_GYRO_RATEMAX", 1000)
+    b.run_s(0.5)
+    n0 = b.node("vehicle_angular_velocity").publish_count
+    g0 = b.node("sensor_gyro").publish_count
+    b.run_s(1.0)
+    d_avel = b.node("vehicle_angular_velocity").publish_count - n0
+    d_gyro = b.node("sensor_gyro").publish_count - g0
+    assert abs(d_avel - d_gyro) <= 2, (d_avel, d_gyro)
+    assert any("every 1 samples" in line for line in b.mod.status_lines())

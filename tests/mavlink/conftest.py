@@ -49,7 +49,9 @@ def open_session(root: Path, gcs: GcsClient | None = None, start_udp: bool = Tru
     gcs.attach(orch)
     orch.run(duration_ns=350 * MS)  # boot: parameters from FRAM, rcS (mavlink on TELEM1)
     s = Session(orch, gcs, root)
-    if start_udp:
+    # rcS starts the GCS link on UDP_PORT itself (as PX4 SITL does); start it only if not.
+    if start_udp and not any(d.get("port") == UDP_PORT
+                             for d in orch.call("fmu", "mavlink", "counters")):
         s.shell(f"mavlink start -u {UDP_PORT} -o 14550")
     return s
 

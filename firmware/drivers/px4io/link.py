@@ -124,19 +124,18 @@ class IoThread:
         if self._waiting_reply:
             self._wake(_IDLE)
 
-    def _on_timeout(self, token: int) -> None:
-        if token == self._token and self._waiting_reply:
-            self._timer = None
+    def _on_timeout(self) -> None:
+        # The one reply timer is re-armed by every ReplyWait (see _step), so when it fires
+        # while a reply is awaited, its deadline is that wait's.
+        if self._waiting_reply:
             self._wake(_TIMEOUT)
 
     def _wake(self, value: Any) -> None:
+        # The reply timer is left pending: the next transaction moves its deadline (no heap
+        # entry per transaction); firing with no reply awaited does nothing.
         self._waiting_reply = False
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
         k = self.platform.kernel
-        self._event = k.call_at(k.now_ns, self._resume, self._token, value,
-                                priority=self._kprio)
+        self._event = k.post(k.now_ns, self._kprio, self._resume, (self._token, value))
 
     def _poll_done(self, n: int) -> None:
         self._poller = None
@@ -169,7 +168,11 @@ class IoThread:
         token = self._token
         if isinstance(req, ReplyWait):
             self._waiting_reply = True
-            self._timer = self.platform.hrt.call_after(req.timeout_us, self._on_timeout, token)
+            timer = self._timer
+            if timer is None:
+                self._timer = self.platform.hrt.call_after(req.timeout_us, self._on_timeout)
+            else:
+                timer.rearm_after(req.timeout_us)
         elif isinstance(req, Poll):
             self._poller = PollWaiter(self.platform, req.subs, req.timeout_us, self._poll_done,
                                       self._kprio)

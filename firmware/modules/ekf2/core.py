@@ -99,6 +99,8 @@ class Ekf:
         self._acc_dt = 0.0
         self._acc_dvn = self._acc_dve = self._acc_dvd = 0.0
         self.fault = 0            # filter_fault_flags bits seen since the last read
+        #: a fusion changed P since the last :meth:`condition` (the module conditions only then)
+        self.fused = False
         # history ring: time and the nominal p, v, yaw at that time
         self._h_t = [0] * HISTORY
         self._h = [(0.0,) * 7] * HISTORY
@@ -210,6 +212,7 @@ class Ekf:
         microseconds on the host.
         """
         P = self.P
+        self.fused = False
         if full:
             P += P.T
             P *= 0.5
@@ -270,6 +273,7 @@ class Ekf:
         k = pht * (1.0 / s)
         self.dx += k * innov
         P -= np.outer(k, pht)
+        self.fused = True
 
     def inject(self) -> None:
         """Apply the accumulated error estimate to the nominal state and zero it."""

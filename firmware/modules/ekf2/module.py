@@ -275,7 +275,8 @@ class Ekf2Module(WorkItemModule):
             ekf.fuse(I_POS, self._hold[0] - ekf.pn, var)
             ekf.fuse(I_POS + 1, self._hold[1] - ekf.pe, var)
             ekf.inject()
-        ekf.condition()
+        if ekf.fused:  # the prediction was conditioned already; only a fusion needs it again
+            ekf.condition()
         self._faults |= ekf.fault
         ekf.fault = 0
         self._publish_position(t)

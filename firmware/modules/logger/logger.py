@@ -367,11 +367,10 @@ class Logger(WorkItem):
         self._poll_params()
         for ts in self._subs:
             sub = ts.sub
+            if sub.node.generation == sub.last_gen:
+                continue  # nothing new on this topic: no update() call, no time read
             if ts.every:
-                while True:
-                    msg = sub.update()
-                    if msg is None:
-                        break
+                for msg in sub.update_all():
                     self._write_sample(ts, msg, now)
             else:
                 msg = sub.update()

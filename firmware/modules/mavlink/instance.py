@@ -13,7 +13,10 @@ task per instance), run every :data:`LOOP_INTERVAL_US` of virtual time. A run
 4. publishes ``telemetry_status`` (last GCS heartbeat) once per second and on the first
    heartbeat.
 
-Everything goes out in one write per run (one datagram on UDP, one burst on a UART).
+Everything goes out in one write per run (one datagram on UDP, one burst on a UART). A UDP
+link sends only HEARTBEAT until a client's first datagram arrives (PX4 announces itself with
+heartbeats until a GCS connects); a serial link streams from the start, as a radio may listen
+without talking.
 """
 
 from __future__ import annotations
@@ -71,6 +74,10 @@ class MavlinkInstance(WorkItem):
         self.mav = mav.MAVLink(None, self.sysid, self.compid)
         self.mav.robust_parsing = True
         self._out = bytearray()
+        self._udp = transport if getattr(transport, "kind", "") == "udp" else None
+        #: earliest next_us of any stream: runs before it skip the stream loop
+        self._streams_due_us = 0
+        self._silent = False
         self._tokens = float(datarate_bps) * 0.1
         self._subs: dict[tuple[str, int], Any] = {}
         self.streams: dict[str, _Stream] = {}
@@ -161,6 +168,7 @@ class MavlinkInstance(WorkItem):
             self.streams.pop(sdef.name, None)
             return True
         interval = max(round(1e6 / rate_hz), 1000)
+        self._streams_due_us = 0  # look at every stream on the next run
         s = self.streams.get(sdef.name)
         if s is None:
             self.streams[sdef.name] = _Stream(sdef, interval)
@@ -270,6 +278,8 @@ class MavlinkInstance(WorkItem):
         p = self.mav
         room = RX_BYTES_PER_RUN - p.buf_len()
         data = self.transport.read(room) if room > 0 else b""
+        if not data and room == RX_BYTES_PER_RUN:
+            return 0  # nothing arrived and nothing buffered: no parser call
         n = 0
         chunk: bytes = data
         while n < RX_MSGS_PER_RUN:
@@ -327,17 +337,30 @@ class MavlinkInstance(WorkItem):
             self.module.error(f"{m.get_type()}: {type(exc).__name__}: {exc}")
 
     def _send_streams(self, now: int) -> None:
+        # A UDP link nobody has talked to yet only announces itself (HEARTBEAT, as PX4
+        # broadcasts heartbeats until a GCS connects); the other streams start with the first
+        # datagram received, so unobserved links build no telemetry.
+        silent = self._udp is not None and not self._udp.rx_datagrams
+        if now < self._streams_due_us and silent == self._silent:
+            return
+        self._silent = silent
+        due = 1 << 62
         for s in self.streams.values():
-            if now < s.next_us:
-                continue
-            msg = s.sdef.build(self)
-            if msg is None:
-                s.next_us = now + s.interval_us
-                continue
-            if not self.send(msg, budget=s.sdef.name != "HEARTBEAT"):
-                continue  # retry next run, as PX4 does when the buffer is full
-            nxt = s.next_us + s.interval_us
-            s.next_us = nxt if nxt > now else now + s.interval_us
+            if now >= s.next_us:
+                if silent and s.sdef.name != "HEARTBEAT":
+                    continue  # stays due: it starts with the client's first datagram
+                msg = s.sdef.build(self)
+                if msg is None:
+                    s.next_us = now + s.interval_us
+                elif self.send(msg, budget=s.sdef.name != "HEARTBEAT"):
+                    nxt = s.next_us + s.interval_us
+                    s.next_us = nxt if nxt > now else now + s.interval_us
+                else:
+                    due = 0  # retry next run, as PX4 does when the buffer is full
+                    continue
+            if s.next_us < due:
+                due = s.next_us
+        self._streams_due_us = due
 
     def send_stream_once(self, msg_id: int) -> bool:
         """REQUEST_MESSAGE for a streamed message: build and send it now."""

@@ -4,13 +4,17 @@ It does in one work item what PX4 spreads over ``sensors``, ``VehicleAngularVelo
 ``VehicleIMU``, ``VehicleAirData`` and ``VehicleMagnetometer``, because on the host one work
 item run is the unit of cost:
 
-* the item runs on every publication of the *selected* gyro (callback subscription, moved when
-  the selection changes) and on a 10 ms watchdog interval, so a gyro that goes silent is still
-  noticed;
-* each run walks the selected gyro's and accelerometer's queues sample by sample: calibration,
-  board rotation, the IMU_GYRO_CUTOFF low-pass and ``vehicle_angular_velocity`` per gyro sample
-  (the gyro rate); integration into ``sensor_combined`` every 1/IMU_INTEG_RATE (4 ms), with
-  ``vehicle_acceleration`` at the same rate;
+* the item wakes on the *selected* gyro (callback subscription, moved with the selection) once
+  ``round(IMU_GYRO_RATEMAX interval / gyro interval)`` samples are queued (PX4's rule: 3 for
+  the MPU6000's 1 kHz at the default 400 Hz), and from a 10 ms HRT watchdog only if no run
+  happened for 10 ms (a silent gyro is still noticed);
+* each run walks the gyro and accelerometer queues sample by sample: calibration, rotation,
+  the IMU_GYRO_CUTOFF low-pass and the derivative at the full raw rate;
+  ``vehicle_angular_velocity`` is published from the last sample, at most every
+  RATEMAX interval less half a sample (the rate controller's loop rate). ``sensor_combined``
+  closes every 1/IMU_INTEG_RATE (4 ms) at the gyro sample that completes it, with the
+  accelerometer samples up to that time (250 Hz whatever the wake-up rate), as does
+  ``vehicle_acceleration``;
 * the selected barometer and magnetometer are averaged over 1/SENS_BARO_RATE and
   1/SENS_MAG_RATE into ``vehicle_air_data`` (ISA altitude from SENS_BARO_QNH) and
   ``vehicle_magnetometer``;
@@ -92,6 +96,8 @@ class SensorsModule(WorkItemModule):
     #: modelled STM32F427 time of a run that handles one gyro sample (calibrate, filter,
     #: publish); runs that also integrate/vote/average cost more (set per run)
     CPU_COST_NS = 18_000
+    #: each further gyro sample of a run (calibrate and filter, no publication)
+    COST_SAMPLE_NS = 8_000
     COST_COMBINED_NS = 30_000
     COST_CHECK_NS = 25_000
 
@@ -149,6 +155,8 @@ class SensorsModule(WorkItemModule):
         self._gyro_dt_avg = 1000.0
         self._rate_unknown = True
         self._filter_primed = False
+        self._avel_last_us = 0          # timestamp_sample of the last vehicle_angular_velocity
+        self._avel_interval_us = 0      # its minimum interval (from IMU_GYRO_RATEMAX)
         self._bgx = self._bgy = self._bgz = 0.0
         self._fx = self._fy = self._fz = 0.0
         self._dx = self._dy = self._dz = 0.0
@@ -168,22 +176,25 @@ class SensorsModule(WorkItemModule):
         self._vax = self._vay = 0.0
         self._vaz = -9.80665
         # baro / mag averaging
-        self._baro_idx = 0
+        self._baro_idx = self._bts = self._bn = 0
         self._bp = self._bt = 0.0
-        self._bts = 0
-        self._bn = 0
-        self._mag_idx = 0
+        self._mag_idx = self._mts = self._mn = 0
         self._mx = self._my = self._mz = 0.0
-        self._mts = 0
-        self._mn = 0
         now = self.platform.time_us()
-        self._next_check = now
+        self._next_check = self._next_status = self._next_air = self._next_mag = now
         self._n_checks = 0
-        self._next_status = now
-        self._next_air = now
-        self._next_mag = now
+        self._last_run_us = now
         self._load_params()
-        item.schedule_on_interval(CHECK_INTERVAL_US)
+        # An HRT callout, not a run: gyro runs do the checks when due (PX4's backup schedule).
+        self._watchdog_call = self.platform.hrt.call_every(CHECK_INTERVAL_US, CHECK_INTERVAL_US,
+                                                           self._watchdog)
+
+    def _watchdog(self) -> None:
+        if self.platform.time_us() - self._last_run_us >= CHECK_INTERVAL_US:
+            self.work_item.schedule_now()  # type: ignore[union-attr]
+
+    def _stop(self) -> None:
+        self._watchdog_call.cancel()
 
     def _load_params(self) -> None:
         self._load_calibrations()
@@ -195,6 +206,7 @@ class SensorsModule(WorkItemModule):
         self._qnh_pa = float(get("SENS_BARO_QNH")) * 100.0
         self._air_us = int(1_000_000 / float(get("SENS_BARO_RATE")))
         self._mag_us = int(1_000_000 / float(get("SENS_MAG_RATE")))
+        self._gyro_ratemax = float(get("IMU_GYRO_RATEMAX"))
         self._set_gyro_rate(self._gyro_dt_avg)
 
     def _set_gyro_rate(self, dt_us: float) -> None:
@@ -204,6 +216,20 @@ class SensorsModule(WorkItemModule):
         dt_s = dt_us * 1e-6
         k = self._dgyro_cutoff
         self._d_alpha = 1.0 if k <= 0.0 else dt_s / (dt_s + 1.0 / (6.283185307179586 * k))
+        self._set_publish_rate(dt_us)
+
+    def _set_publish_rate(self, dt_us: float) -> None:
+        """PX4's rule for IMU_GYRO_RATEMAX: wake after the number of samples closest to the
+        configured interval, publish no closer than that interval less half a sample."""
+        rmax = self._gyro_ratemax
+        if rmax <= 0.0:
+            samples, interval = 1, 0
+        else:
+            configured = 1e6 / rmax
+            samples = math.floor(configured / dt_us + 0.5)  # roundf: halves round up
+            interval = min(10_000, max(125, math.floor(configured - dt_us / 2.0 + 0.5)))
+        self._avel_interval_us = interval
+        self._gyro_cbs[self._gyro_idx].set_required_updates(samples)
 
     def _getter(self) -> Any:
         params = self.system.params
@@ -226,36 +252,52 @@ class SensorsModule(WorkItemModule):
 
     def run(self) -> None:
         item = self.work_item
-        item.cpu_cost_ns = self.CPU_COST_NS
-        now = self.platform.time_us()
+        cost = self.CPU_COST_NS
+        self._last_run_us = now = self.platform.time_us()
         if self._param_sub.updated():
             self._param_sub.copy()
             self._load_params()
         if self._bias_sub.updated():
             self._on_bias(self._bias_sub.copy())
-        gsub = self._gyro_cbs[self._gyro_idx]
-        msg = gsub.update()
-        while msg is not None:
-            self._on_gyro(msg, now)
-            msg = gsub.update()
+        # The accelerometer samples of this run, consumed up to each integration boundary.
         asub = self._accel_subs[self._accel_idx]
-        msg = asub.update()
-        while msg is not None:
-            self._on_accel(msg)
-            msg = asub.update()
-        if self._gi_dt and self._gi_dt >= self._integ_us - (self._gyro_dt_avg * 0.5):
+        accel = asub.update_all()
+        n_acc = len(accel)
+        ai = 0
+        gsub = self._gyro_cbs[self._gyro_idx]
+        t = -1
+        n = 0
+        for msg in gsub.update_all():
+            t = self._on_gyro(msg)
+            n += 1
+            if self._gi_dt >= self._integ_us - (self._gyro_dt_avg * 0.5):
+                while ai < n_acc and accel[ai].timestamp_sample <= t:
+                    self._on_accel(accel[ai])
+                    ai += 1
+                self._publish_combined()
+                cost += self.COST_COMBINED_NS
+        while ai < n_acc:
+            self._on_accel(accel[ai])
+            ai += 1
+        if n:
+            cost += (n - 1) * self.COST_SAMPLE_NS
+            # publish once all queued samples are filtered, at most at IMU_GYRO_RATEMAX
+            iv = self._avel_interval_us
+            last = self._avel_last_us
+            if t >= last + iv:
+                self._publish_avel(now, t)
+                nxt = last + iv
+                # PX4: constrain(last + interval, t - interval, t), so no drift and no burst
+                self._avel_last_us = min(t, max(nxt, t - iv))
+        elif self._gi_dt and self._gi_dt >= self._integ_us - (self._gyro_dt_avg * 0.5):
             self._publish_combined()
-            item.cpu_cost_ns += self.COST_COMBINED_NS
+            cost += self.COST_COMBINED_NS
         bsub = self._baro_subs[self._baro_idx]
-        msg = bsub.update()
-        while msg is not None:
+        for msg in bsub.update_all():
             self._on_baro(msg)
-            msg = bsub.update()
         msub = self._mag_subs[self._mag_idx]
-        msg = msub.update()
-        while msg is not None:
+        for msg in msub.update_all():
             self._on_mag(msg)
-            msg = msub.update()
         if self._bn and now >= self._next_air:
             self._publish_air(now)
         if self._mn and now >= self._next_mag:
@@ -263,11 +305,13 @@ class SensorsModule(WorkItemModule):
         if now >= self._next_check:
             self._next_check = now + CHECK_INTERVAL_US
             self._check(now)
-            item.cpu_cost_ns += self.COST_CHECK_NS
+            cost += self.COST_CHECK_NS
+        item.cpu_cost_ns = cost
 
     # -- gyro / accel ----------------------------------------------------------------------------
 
-    def _on_gyro(self, msg: Any, now: int) -> None:
+    def _on_gyro(self, msg: Any) -> int:
+        """Calibrate, integrate, filter and differentiate one gyro sample; its sample time."""
         cal = self._gyro_cals[self._gyro_idx]
         if cal.identity:
             x, y, z = msg.x, msg.y, msg.z
@@ -283,8 +327,7 @@ class SensorsModule(WorkItemModule):
                 self._rate_unknown = False
             avg += 0.02 * (dt - avg)
             self._gyro_dt_avg = avg
-            lpf = self._lpf
-            if abs(lpf.sample_hz * avg - 1e6) > 0.05e6:  # rate changed by > 5 %
+            if abs(self._lpf.sample_hz * avg - 1e6) > 0.05e6:  # rate changed by > 5 %
                 self._set_gyro_rate(avg)
         else:
             dt = int(avg)
@@ -298,22 +341,26 @@ class SensorsModule(WorkItemModule):
         x -= self._bgx
         y -= self._bgy
         z -= self._bgz
+        lpf = self._lpf
         if not self._filter_primed:
-            self._lpf.reset(x, y, z)
+            lpf.reset(x, y, z)
             self._fx, self._fy, self._fz = x, y, z
             self._filter_primed = True
-        fx, fy, fz = self._lpf.apply(x, y, z)
+        fx, fy, fz = lpf.apply(x, y, z)
         a = self._d_alpha
         inv = 1e6 / dt
         self._dx += a * ((fx - self._fx) * inv - self._dx)
         self._dy += a * ((fy - self._fy) * inv - self._dy)
         self._dz += a * ((fz - self._fz) * inv - self._dz)
         self._fx, self._fy, self._fz = fx, fy, fz
+        return t
+
+    def _publish_avel(self, now: int, t: int) -> None:
         m = self._m_avel
         m.timestamp = now
         m.timestamp_sample = t
         xyz = m.xyz
-        xyz[0], xyz[1], xyz[2] = fx, fy, fz
+        xyz[0], xyz[1], xyz[2] = self._fx, self._fy, self._fz
         d = m.xyz_derivative
         d[0], d[1], d[2] = self._dx, self._dy, self._dz
         self._pub_avel.publish(m)
@@ -490,6 +537,8 @@ class SensorsModule(WorkItemModule):
                 cb.last_gen = max(0, cb.node.generation - 1)  # the latest sample only
                 cb.register_callback()
                 self._gyro_idx = new
+                self._avel_last_us = 0
+                self._set_publish_rate(self._gyro_dt_avg)
                 self._gyro_t = -1
                 self._rate_unknown = True  # measured from the new gyro's first two samples
                 self._bgx = self._bgy = self._bgz = 0.0  # that bias was the old gyro's
@@ -542,4 +591,7 @@ class SensorsModule(WorkItemModule):
                            f"errors {s.error_count}")
         out.append(f"gyro rate {1e6 / self._gyro_dt_avg:.0f} Hz, cutoff {self._gyro_cutoff} Hz,"
                    f" integration {self._integ_us} us")
+        cb = self._gyro_cbs[self._gyro_idx]
+        out.append(f"vehicle_angular_velocity: IMU_GYRO_RATEMAX {self._gyro_ratemax:.0f} Hz, "
+                   f"every {cb.required_updates} samples, >= {self._avel_interval_us} us apart")
         return out

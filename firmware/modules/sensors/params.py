@@ -100,6 +100,15 @@ def _build() -> tuple[ParamDef, ...]:
                  long="2nd-order Butterworth on vehicle_angular_velocity (what the rate "
                       "controller sees). 0 disables it. Not applied to sensor_combined, which "
                       "the estimator integrates.", decimals=1),
+        ParamDef("IMU_GYRO_RATEMAX", "INT32", 400, min=100, max=2000, unit="Hz", group=_IMU,
+                 short="Gyro control data maximum publication rate (inner loop rate)",
+                 long="The maximum rate the gyro control data (vehicle_angular_velocity) will "
+                      "be allowed to publish at. This is the loop rate for the rate controller "
+                      "and outputs. Note: sensor data is always read and filtered at the full "
+                      "raw rate regardless of this setting.",
+                 values={100: "100 Hz", 250: "250 Hz", 400: "400 Hz", 800: "800 Hz",
+                         1000: "1000 Hz", 2000: "2000 Hz"},
+                 reboot_required=True),
         ParamDef("IMU_DGYRO_CUTOFF", "FLOAT", 30.0, min=0.0, max=1000.0, unit="Hz", group=_IMU,
                  short="Cutoff frequency for angular acceleration (D-term filter)",
                  long="1st-order low-pass on the derivative of the filtered rate "
