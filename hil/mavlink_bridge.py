@@ -120,7 +120,9 @@ class MavlinkUdpBridge:
         ep = self.endpoints.get(fmu_port)
         if ep is None or ep.sock is None:
             return  # a datagram for a port this bridge does not carry (another device's)
-        dest = ep.client or (ep.host, remote_port or ep.remote_port)
+        # The host side decides where its programs listen (the defaults match rcS's -o ports);
+        # once a client has talked, replies go to it, as PX4's UDP link does.
+        dest = ep.client or (ep.host, ep.remote_port)
         try:
             ep.sock.sendto(data, dest)
             ep.tx_datagrams += 1

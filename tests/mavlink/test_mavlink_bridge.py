@@ -36,8 +36,7 @@ def test_host_gcs_over_udp(tmp_path):
     try:
         orch.start()
         orch.run(duration_ns=350 * MS)
-        orch.call("fmu", "shell", f"mavlink start -u 18570 -o {gcs_port}")
-        orch.run(duration_ns=1100 * MS)
+        orch.run(duration_ns=1100 * MS)  # rcS started the link on FMU port 18570
         drain()
         assert any(m.get_type() == "HEARTBEAT" and m.autopilot == 12 for m in got)
         # The GCS talks from its own socket; the bridge answers to that address.

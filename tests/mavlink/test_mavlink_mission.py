@@ -51,10 +51,24 @@ def test_set_current_reported_by_mission_current(dataman):
 def test_unsupported_item_rejects_upload_and_keeps_mission(dataman):
     gcs = dataman.gcs
     item = mav.MAVLink_mission_item_int_message(1, 1, 0, mav.MAV_FRAME_MISSION,
-                                                mav.MAV_CMD_DO_CHANGE_SPEED, 0, 1, 1, 5, -1, 0,
+                                                mav.MAV_CMD_DO_SET_SERVO, 0, 1, 5, 1500, 0, 0,
                                                 0, 0, 0.0, 0)
     assert gcs.upload_mission([item]) == mav.MAV_MISSION_UNSUPPORTED
     assert _store(dataman).count == 4  # the half-uploaded mission never became active
+
+
+def test_change_speed_item_round_trips(dataman):
+    # MAVSDK adds DO_CHANGE_SPEED when a mission item has a speed; PX4 accepts it.
+    gcs = dataman.gcs
+    wp = (47.3978, 8.5456, 10.0)
+    speed = mav.MAVLink_mission_item_int_message(1, 1, 1, mav.MAV_FRAME_MISSION,
+                                                 mav.MAV_CMD_DO_CHANGE_SPEED, 0, 1, 1, 3.5, -1,
+                                                 0, 0, 0, 0.0, 0)
+    assert gcs.upload_mission([wp, speed, wp]) == mav.MAV_MISSION_ACCEPTED
+    items = gcs.download_mission()
+    assert [it.command for it in items] == [mav.MAV_CMD_NAV_WAYPOINT,
+                                           mav.MAV_CMD_DO_CHANGE_SPEED, mav.MAV_CMD_NAV_WAYPOINT]
+    assert items[1].param2 == 3.5
 
 
 def test_fence_and_rally_are_unsupported(dataman):

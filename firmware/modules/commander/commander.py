@@ -41,6 +41,13 @@ _BAT_TEXT = {1: "Low battery level! Return advised", 2: "Critical battery level!
              3: "Emergency battery level! Land now"}
 
 
+# MAV_SYS_STATUS_SENSOR bits (MAVLink common.xml)
+_S_GYRO, _S_ACCEL, _S_MAG, _S_BARO, _S_GPS = 0x1, 0x2, 0x4, 0x8, 0x20
+_S_RATE, _S_ATT, _S_YAW, _S_ALT, _S_XY = 0x400, 0x800, 0x1000, 0x2000, 0x4000
+_S_MOTORS, _S_RC, _S_AHRS, _S_BATTERY, _S_PREARM = 0x8000, 0x10000, 0x200000, 0x2000000, \
+    0x10000000
+
+
 class CommanderModule(CommandHandler, WorkItemModule):
     NAME = "commander"
     DESCRIPTION = "vehicle state: arming, flight modes, failsafes"
@@ -391,6 +398,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
         s.pre_flight_checks_pass = not self.failures
         s.battery_low = bat >= 1
         s.battery_critical = bat >= 2
+        (s.onboard_control_sensors_present, s.onboard_control_sensors_enabled,
+         s.onboard_control_sensors_health) = self._sensor_bits(armed, bat)
         self._pub_status.publish(s)
 
         m = self._mode
@@ -412,6 +421,38 @@ class CommanderModule(CommandHandler, WorkItemModule):
         a.manual_lockdown = self.kill_engaged
         a.force_failsafe = self.nav_state == modes.TERMINATION
         self._pub_armed.publish(a)
+
+    def _sensor_bits(self, armed: bool, bat: int) -> tuple[int, int, int]:
+        """MAV_SYS_STATUS_SENSOR present/enabled/health bits, as PX4 reports them in SYS_STATUS
+        (ground stations and MAVSDK's health checks read them)."""
+        d = self.data
+        present = enabled = health = 0
+
+        def put(bit: int, is_present: bool, ok: bool, on: bool = True) -> None:
+            nonlocal present, enabled, health
+            if is_present:
+                present |= bit
+                if on:
+                    enabled |= bit
+                if ok:
+                    health |= bit
+
+        imu, baro, mag = d.imu.node.last, d.baro.node.last, d.mag.node.last
+        imu_ok = imu is not None and any(imu.healthy)
+        put(_S_GYRO | _S_ACCEL, imu is not None, imu_ok)
+        put(_S_MAG, mag is not None, mag is not None and any(mag.healthy))
+        put(_S_BARO, baro is not None, baro is not None and any(baro.healthy))
+        gps = d.gps.node.last
+        put(_S_GPS, gps is not None, gps is not None and gps.fix_type >= 3)
+        est = d.estimator.node.last
+        put(_S_AHRS, est is not None, est is not None and not est.filter_fault_flags)
+        put(_S_RC, d.rc_seen, self.rc_ok)
+        put(_S_RATE | _S_ATT | _S_YAW, True, True, armed)
+        put(_S_ALT | _S_XY, True, True, armed)
+        put(_S_MOTORS, True, True, armed)
+        put(_S_BATTERY, d.battery.node.last is not None, bat < 2)
+        put(_S_PREARM, True, not self.failures)
+        return present, enabled, health
 
     def status_lines(self) -> list[str]:
         state = {INIT: "INIT", STANDBY: "STANDBY", ARMED: "ARMED",

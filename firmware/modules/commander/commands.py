@@ -39,6 +39,13 @@ _GESTURE_STICK = 0.8
 _MANUAL_NAV = frozenset({modes.MANUAL, modes.STAB, modes.ACRO, modes.ALTCTL, modes.POSCTL})
 
 
+
+def _param_int(value: float, default: int = 0) -> int:
+    """A MAVLink command parameter as an integer; NaN (MAVLink's "unused") gives ``default``."""
+    if value != value or value in (float("inf"), float("-inf")):
+        return default
+    return int(round(value))
+
 class CommandHandler:
     """vehicle_command dispatch, RC switches and gestures, shell commands."""
 
@@ -51,7 +58,11 @@ class CommandHandler:
     # -- vehicle_command --------------------------------------------------------------------
 
     def handle_command(self, cmd: Any) -> int | None:
-        """Execute one command and ack it; None if it is not for us (no ack)."""
+        """Execute one command and ack it; None if it is not for us (no ack).
+
+        A command whose parameters make a handler fail (a ground station sending NaN where a
+        number is needed) is acked FAILED with the reason; it never takes the commander down.
+        """
         if cmd.target_system not in (0, self.sys_id):  # type: ignore[attr-defined]
             return None
         handler: Callable[[Any], int] | None = self._handlers().get(int(cmd.command))
@@ -62,7 +73,12 @@ class CommandHandler:
             result = UNSUPPORTED
             self.last_reason = f"command {cmd.command} not supported"
         else:
-            result = handler(cmd)
+            try:
+                result = handler(cmd)
+            except (ValueError, TypeError, OverflowError) as exc:
+                result = FAILED
+                self.last_reason = f"command {cmd.command}: bad parameter ({exc})"
+                self.platform.error("commander", self.last_reason)  # type: ignore[attr-defined]
         self.ack(cmd, result)  # type: ignore[attr-defined]
         return result
 
@@ -79,7 +95,7 @@ class CommandHandler:
 
     def _cmd_arm(self, cmd: Any) -> int:
         from firmware.modules.commander.commander import R_CMD_EXTERNAL, R_CMD_INTERNAL
-        force = round(cmd.param2) == FORCE_ARM_MAGIC
+        force = _param_int(cmd.param2) == FORCE_ARM_MAGIC
         reason = R_CMD_EXTERNAL if cmd.from_external else R_CMD_INTERNAL
         if cmd.param1 == 1.0:
             ok, why = self.arm(reason, force)  # type: ignore[attr-defined]
@@ -100,9 +116,9 @@ class CommandHandler:
         return lambda cmd: self._set_mode(nav, "command")
 
     def _cmd_mode(self, cmd: Any) -> int:
-        base = int(cmd.param1)
+        base = _param_int(cmd.param1)
         if base & _MAV_MODE_FLAG_CUSTOM:
-            nav = modes.custom_to_nav(int(cmd.param2), int(cmd.param3))
+            nav = modes.custom_to_nav(_param_int(cmd.param2), _param_int(cmd.param3))
         elif base & _FLAG_AUTO:
             nav = modes.AUTO_MISSION
         elif base & _FLAG_MANUAL:
@@ -117,7 +133,7 @@ class CommandHandler:
         return self._set_mode(nav, "command")
 
     def _cmd_reposition(self, cmd: Any) -> int:
-        if int(cmd.param2) & 1 or self.user_nav == modes.AUTO_LOITER:
+        if _param_int(cmd.param2) & 1 or self.user_nav == modes.AUTO_LOITER:
             return self._set_mode(modes.AUTO_LOITER, "reposition")
         self.last_reason = "reposition only in Hold mode"
         return TEMPORARILY_REJECTED
@@ -141,12 +157,12 @@ class CommandHandler:
         return ACCEPTED
 
     def _cmd_reboot(self, cmd: Any) -> int:
-        if int(cmd.param1) not in (1, 3):
+        if _param_int(cmd.param1) not in (1, 3):
             return UNSUPPORTED
         if self.arming_state == 2:
             self.last_reason = "reboot refused while armed"
             return DENIED
-        ok = self.system.reboot(int(cmd.param1) == 3)  # type: ignore[attr-defined]
+        ok = self.system.reboot(_param_int(cmd.param1) == 3)  # type: ignore[attr-defined]
         return ACCEPTED if ok else FAILED
 
     # -- RC ---------------------------------------------------------------------------------

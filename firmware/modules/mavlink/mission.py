@@ -30,10 +30,10 @@ __all__ = ["SUPPORTED_NAV_CMDS", "MissionService"]
 
 RETRY_US = 500_000
 MAX_RETRIES = 5
-SUPPORTED_NAV_CMDS = frozenset({16, 17, 19, 20, 21, 22})
+SUPPORTED_NAV_CMDS = frozenset({16, 17, 19, 20, 21, 22, 178})
 _REL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 _ABS_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT})
-_NO_POS_CMDS = frozenset({20})  # RTL carries no position
+_NO_POS_CMDS = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no position
 
 
 class MissionService:
@@ -170,6 +170,8 @@ class MissionService:
             item.loiter_radius = float(m.param3)
         elif cmd in (21, 22):
             item.yaw = math.radians(m.param4) if math.isfinite(m.param4) else math.nan
+        elif cmd == 178:  # DO_CHANGE_SPEED: param2 speed (m/s), -1 or NaN: no change
+            item.speed_m_s = float(m.param2) if math.isfinite(m.param2) and m.param2 > 0 else -1.0
         return mav.MAV_MISSION_ACCEPTED, item
 
     # -- download -----------------------------------------------------------------------------
@@ -205,6 +207,8 @@ class MissionService:
             p1, p3 = it.time_inside, it.loiter_radius
         elif cmd == 17:
             p3 = it.loiter_radius
+        elif cmd == 178:
+            p1, p2, p3 = 1.0, it.speed_m_s, -1.0  # ground speed, m/s, throttle unchanged
         frame = (mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT if as_int else
                  mav.MAV_FRAME_GLOBAL_RELATIVE_ALT) if it.altitude_is_relative else \
             (mav.MAV_FRAME_GLOBAL_INT if as_int else mav.MAV_FRAME_GLOBAL)

@@ -38,6 +38,9 @@ CMD_RTL = 20
 P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE = range(6)
 
 
+DO_CHANGE_SPEED = 178
+
+
 class MissionMode(NavMode):
     name = "mission"
 
@@ -146,7 +149,9 @@ class MissionMode(NavMode):
             nav.send_command(CMD_RTL)
             self.phase = P_DONE
             return
-        if cmd not in _POSITION_ITEMS:  # unsupported DO_* items are skipped
+        if cmd not in _POSITION_ITEMS:  # DO_* items act at once and are passed
+            if cmd == DO_CHANGE_SPEED and item.speed_m_s > 0:
+                nav.cruise_speed = float(item.speed_m_s)
             self.seq_reached = self.index
             self.index += 1
             self._start_item()

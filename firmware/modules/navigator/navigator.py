@@ -77,6 +77,8 @@ class NavigatorModule(WorkItemModule):
         self._pub_result = self.advertise("mission_result")
         self._pub_cmd = self.advertise("vehicle_command")
         self.triplet = orb.new("position_setpoint_triplet")
+        #: cruise speed set by a mission's DO_CHANGE_SPEED, m/s (-1: the controller's default)
+        self.cruise_speed = -1.0
         self.result = orb.new("mission_result")
         self.result.seq_reached = -1
         self._cmd = orb.new("vehicle_command")
@@ -141,6 +143,7 @@ class NavigatorModule(WorkItemModule):
         c.yaw_valid = math.isfinite(yaw)
         c.yaw = float(yaw) if c.yaw_valid else math.nan
         c.acceptance_radius = acc if acc is not None else self.p["NAV_ACC_RAD"]
+        c.cruising_speed = self.cruise_speed
         c.vx = c.vy = c.vz = 0.0
         t.next.valid = False
         self._dirty = True
