@@ -166,6 +166,7 @@ class FmuV2Board(Board):
                 self.expose_uart(u.port, self.uarts[u.name])
         self.expose_input("truth", self._on_truth)
         self.expose_input("power", self._on_power)
+        self._emit_reboot = self.expose_output("reboot")
         self.udp_out = self.expose_output("udp_out")
         self.udp_handlers: dict[int, Any] = {}
         self.expose_input("udp_in", self._on_udp)
@@ -233,8 +234,13 @@ class FmuV2Board(Board):
         romfs.boot(self.shell)
 
     def _reboot_request(self, to_bootloader: bool) -> None:
-        self.platform.warn("reboot", "reboot requested; the orchestrator restarts the board")
+        """``reboot`` / PREFLIGHT_REBOOT: ask the orchestrator (which owns the process) to power
+        cycle this board; FRAM, a host file, keeps the parameters."""
+        self.platform.warn("reboot", "rebooting in 100 ms")
         self.reboot_requested = True
+        # As PX4 does, give the acknowledgement time to leave before going down.
+        k = self.kernel
+        k.call_later(100_000_000, lambda: self._emit_reboot(k.now_ns, int(to_bootloader)))
 
     def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
         """Bytes typed on the console UART: echo, and run each line on the shell."""

@@ -40,7 +40,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     from hil.fly import main
 
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
-                airframe=args.airframe, keep_safety=args.keep_safety)
+                airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram)
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
@@ -77,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--airframe", type=int, default=4011)
     p.add_argument("--keep-safety", action="store_true",
                    help="do not press the safety switch at boot")
+    p.add_argument("--keep-fram", action="store_true",
+                   help="keep the FRAM image of the last run (parameters, mission)")
     p.set_defaults(func=_cmd_fly)
 
     p = sub.add_parser("bench", help="measure the speed figures")

@@ -29,15 +29,17 @@ NS_PER_S = 1_000_000_000
 
 def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
-         params: dict[str, Any] | None = None, quiet: bool = False) -> int:
+         params: dict[str, Any] | None = None, quiet: bool = False,
+         keep_fram: bool = False) -> int:
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
-                       console=True, udp_bridge=True,
+                       console=True, udp_bridge=True, fresh_fram=not keep_fram,
                        params={"EKF2_MAG_DECL": 2.6, **(params or {})})
     orch, dev = build_system(cfg)
     say = (lambda text: None) if quiet else (lambda text: print(text, flush=True))
+    orch.log = lambda text: print(text, file=sys.stderr, flush=True)  # deaths, reboots
     stop = {"now": False}
 
     def on_term(_signum: int, _frame: Any) -> None:

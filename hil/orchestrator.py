@@ -91,6 +91,10 @@ class Orchestrator:
         self.handles: dict[str, Any] = {}
         self.dead: dict[str, str] = {}
         self._inbox: dict[str, list] = {name: [] for name in boards}
+        #: boards that expose a "reboot" output, reboots requested this quantum, reboot counts
+        self._reboot_boards: set[str] = set()
+        self._reboot_pending: list[str] = []
+        self.reboots: dict[str, int] = {}
         #: next event time each board reported (None: nothing scheduled); 0 forces an exchange
         self._next_ns: dict[str, int | None] = {name: 0 for name in boards}
         self.skip_idle = True
@@ -143,6 +147,8 @@ class Orchestrator:
                 for name, spec in self.specs.items():
                     self.handles[name] = LocalHandle(name, spec.factory,
                                                      resolve_kwargs(spec.kwargs))
+            self._reboot_boards = {n for n, h in self.handles.items()
+                                   if any(p[0] == "reboot" for p in h.ports)}
             for w in self.wiring:
                 for (board, port), want in ((w.src, ("out", "inout")), (w.dst, ("in", "inout"))):
                     if board == WORLD:
@@ -205,7 +211,11 @@ class Orchestrator:
                 trace.write(name, until, sent[name], outputs)
             if outputs:
                 self._route_all(name, outputs)
+                if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
+                    self._reboot_pending.append(name)
         self.t_ns = until
+        while self._reboot_pending:
+            self._restart(self._reboot_pending.pop(0))
         self.quanta += 1
         for hook in self.on_quantum:
             hook(self)
@@ -237,6 +247,31 @@ class Orchestrator:
                 self.world.input(dst_port, t_ns, payload)
             elif dst_board not in self.dead:
                 self._inbox[dst_board].append((dst_port, t_ns, payload))
+
+    def _restart(self, name: str) -> None:
+        """Reboot a board that asked for it (``reboot`` on its console, MAVLink's
+        PREFLIGHT_REBOOT): its process is replaced by a new one built from the same spec, which
+        boots from its own time zero, as the real FMU's clock restarts; what it kept in FRAM
+        (a host file) survives. The new board's times are offset by the reboot time."""
+        old = self.handles[name]
+        try:
+            old.close(timeout_s=1.0)
+        except Exception:
+            pass
+        spec = self.specs[name]
+        if self.mode == "process":
+            from hil.boardproc import ProcessHandle
+
+            inner: Any = ProcessHandle(name, spec.factory, spec.kwargs, self.start_method)
+        else:
+            from hil.boardproc import resolve_kwargs
+
+            inner = LocalHandle(name, spec.factory, resolve_kwargs(spec.kwargs))
+        self.handles[name] = _OffsetHandle(inner, self.t_ns)
+        self._inbox[name] = []
+        self._next_ns[name] = 0
+        self.reboots[name] = self.reboots.get(name, 0) + 1
+        self.log(f"hil: board {name} rebooted at t={self.t_ns / 1e9:.6f} s")
 
     def _board_died(self, name: str, detail: str, t_ns: int) -> None:
         self.dead[name] = detail
@@ -329,3 +364,26 @@ class Orchestrator:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class _OffsetHandle:
+    """A rebooted board: its clock started at ``offset_ns`` of the orchestrator's time."""
+
+    def __init__(self, inner: Any, offset_ns: int) -> None:
+        self.inner = inner
+        self.offset = offset_ns
+        self.name = inner.name
+        self.ports = inner.ports
+
+    def post_advance(self, start_ns: int, until_ns: int, inputs: list) -> None:
+        off = self.offset
+        self.inner.post_advance(start_ns - off, until_ns - off,
+                                [(p, max(t - off, 0), v) for p, t, v in inputs])
+
+    def wait_advance(self) -> tuple[list, int | None]:
+        out, nxt = self.inner.wait_advance()
+        off = self.offset
+        return [(p, t + off, v) for p, t, v in out], (None if nxt is None else nxt + off)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
