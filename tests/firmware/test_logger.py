@@ -13,7 +13,7 @@ from firmware.modules.logger.ulog import SYNC_MAGIC
 from firmware.platform import Platform
 from firmware.platform.msgdef import MessageRegistry, parse_msg
 
-pyulog = pytest.importorskip("pyulog")
+import pyulog  # noqa: E402 - a dependency of the package
 
 MS = 1_000_000  # ns
 

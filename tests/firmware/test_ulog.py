@@ -8,7 +8,7 @@ import pytest
 from firmware.modules.logger.ulog import SYNC_MAGIC, UlogError, UlogWriter, formats_for
 from firmware.platform.msgdef import PRIMITIVES, MessageRegistry, default_registry, parse_msg
 
-pyulog = pytest.importorskip("pyulog")
+import pyulog  # noqa: E402 - a dependency of the package
 
 
 def read(buf: io.BytesIO):

@@ -11,7 +11,6 @@ from firmware.modules.logger import Logger
 from firmware.platform import Platform
 from hil.log_tools import info_main, plot_main
 
-pytest.importorskip("pyulog")
 
 FIXTURES = Path("/work/shared/fixtures/ulog")
 MS = 1_000_000
@@ -67,7 +66,7 @@ def test_info_on_our_log_lists_topics_info_and_messages(our_log):
 def test_info_survives_real_px4_logs(name):
     path = FIXTURES / name
     if not path.exists():
-        pytest.skip("fixture logs not present")
+        raise AssertionError("fixture logs missing: ../shared/fixtures/ulog")
     out = io.StringIO()
     assert info_main(path, out=out) == 0
     assert "Name (multi id, message size in bytes)" in out.getvalue()
@@ -76,7 +75,7 @@ def test_info_survives_real_px4_logs(name):
 def test_info_on_sample_matches_known_facts():
     path = FIXTURES / "sample.ulg"
     if not path.exists():
-        pytest.skip("fixture logs not present")
+        raise AssertionError("fixture logs missing: ../shared/fixtures/ulog")
     out = io.StringIO()
     info_main(path, out=out)
     text = out.getvalue()
@@ -98,7 +97,6 @@ def test_info_rejects_what_is_not_a_ulog(tmp_path):
 
 
 def test_plot_writes_pngs_and_skips_missing_topics(our_log, tmp_path):
-    pytest.importorskip("matplotlib")
     out = io.StringIO()
     rc = plot_main(our_log, ["sensor_gyro", "no_such_topic"], tmp_path / "plots", out=out)
     assert rc == 0
