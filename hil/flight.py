@@ -109,10 +109,12 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         _say(cfg, f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}")
         gcs.wait_heartbeat(timeout_s=10.0)
         phase("booted (heartbeat)")
-        dev["safety"].press(orch.t_ns + S // 2, hold_s=1.5)
         gcs.wait_for(lambda: (gcs.last.get("HOME_POSITION") is not None
                               or _estimator_ready(gcs)), timeout_s=60.0)
         phase("estimator ready (GPS position)")
+        # The IO takes the button only once the FMU says it is ready to arm (IO_ARM_OK): the
+        # pilot presses when the vehicle is ready, as with the real safety LED.
+        dev["safety"].press(orch.t_ns + S // 10, hold_s=1.5)
         gp = gcs.last.get("GLOBAL_POSITION_INT")
         if gp is not None:
             home = (gp.lat * 1e-7, gp.lon * 1e-7)
@@ -126,8 +128,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         if result != 0:
             raise RuntimeError(f"mission upload refused (MISSION_ACK type {result})")
         phase("mission uploaded (takeoff, 4 waypoints, return)")
-        gcs.wait_for(lambda: orch.t_ns > 0 and dev["safety"].presses and _safety_off(orch),
-                     timeout_s=10.0)
+        gcs.wait_for(lambda: _safety_off(orch), timeout_s=10.0)
         phase("safety switch off")
         ack = gcs.arm(timeout_s=5.0)
         if ack.result != 0:

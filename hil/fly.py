@@ -8,8 +8,9 @@ MAVLink is reachable on 127.0.0.1 the way PX4 SITL users expect:
 * MAVSDK and other API clients: the vehicle sends to UDP 14540 (``udp://:14540``),
 
 and the FMU console (nsh) is on a host pseudo-terminal and a TCP port, which ``hil shell``
-finds by itself. The safety switch is pressed two seconds after boot unless
-``--keep-safety`` is given, since a ground station cannot press it.
+finds by itself. The safety switch is pressed for the user unless
+``--keep-safety`` is given, since a ground station cannot press it (four seconds after power on,
+once the FMU reports ready to arm: the IO ignores the button before).
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                 f"pty {console.pty_name})")
             say("  Ctrl-C to stop.")
             if not keep_safety:
-                dev["safety"].press(2 * NS_PER_S, hold_s=1.5)
+                # The IO takes the button only once the FMU is ready to arm (~2 s after boot).
+                dev["safety"].press(4 * NS_PER_S, hold_s=1.5)
             end = None if duration_s is None else int(duration_s * NS_PER_S)
             last_report = time.monotonic()
             while not stop["now"] and (end is None or orch.t_ns < end):

@@ -237,8 +237,13 @@ class GcsClient:
                                  [0.0, FORCE_ARM_MAGIC if force else 0.0], timeout_s)
 
     def takeoff(self, alt_m: float, timeout_s: float = 3.0) -> Any:
+        """Take off to ``alt_m`` above home. NAV_TAKEOFF's param7 is an AMSL altitude (PX4), so
+        it is sent as home's altitude plus ``alt_m``, as MAVSDK does; without a home position
+        yet, NaN (the vehicle then uses MIS_TAKEOFF_ALT)."""
         nan = float("nan")
-        return self.command_long(mav.MAV_CMD_NAV_TAKEOFF, [-1, 0, 0, nan, nan, nan, alt_m],
+        home = self.last.get("HOME_POSITION")
+        amsl = home.altitude / 1000.0 + alt_m if home is not None else nan
+        return self.command_long(mav.MAV_CMD_NAV_TAKEOFF, [-1, 0, 0, nan, nan, nan, amsl],
                                  timeout_s)
 
     def land(self, timeout_s: float = 3.0) -> Any:

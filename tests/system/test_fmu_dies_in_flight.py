@@ -25,10 +25,10 @@ def test_kill_fmu_in_hover(tmp_path):
     with orch:
         gcs.attach(orch)
         gcs.wait_heartbeat(timeout_s=10)
-        dev["safety"].press(orch.t_ns + S // 2, hold_s=1.5)
         gcs.wait_for(lambda: (gp := gcs.last.get("GPS_RAW_INT")) is not None and gp.fix_type >= 3
                      and gcs.last.get("HOME_POSITION") is not None, timeout_s=60)
-        gcs.step(3.0)
+        dev["safety"].press(orch.t_ns + S // 10, hold_s=1.5)  # once ready, as a pilot does
+        gcs.step(2.0)
         assert gcs.arm(timeout_s=5).result == 0
         assert gcs.takeoff(10.0).result == 0
         gcs.wait_for(lambda: world.truth().agl_m > 9.5, timeout_s=30)

