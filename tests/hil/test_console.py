@@ -43,14 +43,14 @@ def session(tmp_path_factory):
         text = bytes(buf).split(b"nsh> ", 1)[0].decode()
         return text.replace("\r\n", "\n").split("\n", 1)[1]  # drop the echoed line
 
-    yield orch, bridge, ask
+    yield orch, bridge, ask, port
     port.close()
     orch.close()
     bridge.close()
 
 
 def test_scripted_session_over_the_pty(session):
-    _orch, _bridge, ask = session
+    _orch, _bridge, ask, _port = session
     help_text = ask("help")
     for cmd in ("param", "listener", "top", "dmesg", "mpu6000"):
         assert cmd in help_text
@@ -76,10 +76,44 @@ def test_scripted_session_over_the_pty(session):
     assert "command not found" in ask("definitely_not_a_command")
     assert "parameter NO_SUCH_PARAM not found" in ask("param set NO_SUCH_PARAM 1")
     assert "HW arch" in ask("ver all")  # the shell went on after the errors
+    # the rest of param, over the same line
+    assert ask("param compare SDLOG_PROFILE 3") == "" and ask("echo $?").strip() == "0"
+    ask("param greater SDLOG_PROFILE 5")
+    assert ask("echo $?").strip() == "1"
+    assert "parameters" in ask("param status")
+    ask("param export /fs/microsd/params.txt")
+    ask("param set SDLOG_PROFILE 1")
+    ask("param import /fs/microsd/params.txt")
+    assert ask("param get SDLOG_PROFILE").strip() == "3"
+    ask("param reset SDLOG_PROFILE")
+    assert ask("param get SDLOG_PROFILE").strip() == "1"
+    ask("param set SDLOG_PROFILE 7")
+    ask("param reset_all")
+    assert ask("param get SDLOG_PROFILE").strip() == "1"
+    ask("param load")
+    # a module's life cycle from the console
+    ask("ms5611 stop")
+    assert "not running" in ask("ms5611 status")
+    ask("ms5611 start")
+    assert "ms5611: running" in ask("ms5611 status")
 
+
+def test_reboot_from_the_console(session):
+    orch, _bridge, ask, port = session
+    port.write(b"reboot\r")
+    before = orch.reboots.get("fmu", 0)
+    for _ in range(100):
+        orch.run(duration_ns=20 * MS)
+        if orch.reboots.get("fmu", 0) > before:
+            break
+    assert orch.reboots.get("fmu", 0) == before + 1
+    orch.run(duration_ns=1500 * MS)  # the new board boots and runs rcS on the console
+    port.read(1 << 20)                 # its boot output
+    assert "HW arch: PX4_FMU_V2" in ask("ver all")
+    assert "rebooting" not in ask("dmesg")  # a fresh dmesg: a new board
 
 def test_tcp_console_answers_hil_shell(session):
-    orch, bridge, _ask = session
+    orch, bridge, _ask, _port = session
     result = {}
     th = threading.Thread(target=lambda: result.update(
         out=run_command(bridge.tcp_port, "param get SYS_USE_IO", timeout_s=20)))
