@@ -73,6 +73,7 @@ _STATUS_BITS = tuple((f"status_{n.lower()}", "status_flags", int(StatusFlags[n])
     tuple((f"arming_{n.lower()}", "arming", int(ArmingA[n])) for n in cfg.ARMING_FIELDS)
 #: SETUP_ARMING bits this driver owns (the IO sets FAILSAFE_CUSTOM and ALWAYS_PWM_ENABLE).
 _ARMING_OWNED = (_A.FMU_ARMED | _A.IO_ARM_OK | _A.LOCKDOWN | _A.FORCE_FAILSAFE
+                 | _A.OVERRIDE_IMMEDIATE
                  | _A.MANUAL_OVERRIDE_OK | _A.INAIR_RESTART_OK | _A.TERMINATION_FAILSAFE)
 _ALARM_TEXT = ((_AL.FMU_LOST, "FMU lost (no controls for 500 ms)"),
                (_AL.RC_LOST, "RC lost"), (_AL.PWM_ERROR, "PWM rate error"),
@@ -374,6 +375,9 @@ class Px4ioDriver:
             bits |= _A.FORCE_FAILSAFE if armed.force_failsafe else 0
         if vstatus is not None and vstatus.vehicle_type == _VEHICLE_TYPE_FIXED_WING:
             bits |= _A.MANUAL_OVERRIDE_OK  # E14: override only for non-rotary-wing vehicles
+        if int(self._param("IO_OVERRIDE_EN", 0)):
+            # The emulator's opt-in: override allowed, and taken at once when the FMU is lost.
+            bits |= _A.MANUAL_OVERRIDE_OK | _A.OVERRIDE_IMMEDIATE
         bits |= _A.INAIR_RESTART_OK if self.inair_restart_ok else 0
         bits |= _A.TERMINATION_FAILSAFE if self.termination_failsafe else 0
         if self.inair_restart:  # keep FMU_ARMED on the IO until the commander re-arms

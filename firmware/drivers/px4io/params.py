@@ -49,6 +49,15 @@ PARAMS: tuple[ParamDef, ...] = (
              long="Output numbers as digits, as the startup script's PWM_OUT variable "
                   "(1234 = outputs 1 to 4). Each IO timer group ({1,2}, {3,4}, {5..8}) must "
                   "be entirely in or out, else the IO raises PWM_ERROR. 0 = all at 50 Hz."),
+    ParamDef("IO_OVERRIDE_EN", "INT32", 0, min=0, max=1, group=_GROUP,
+             short="Allow the IO's RC manual override on rotary-wing vehicles",
+             long="The 2014 IO firmware hands the outputs to the pilot's sticks (through its "
+                  "own mixer) when the FMU stops talking or the override switch is set, and "
+                  "the FMU allows that for fixed wing only. 1 allows it on multicopters too "
+                  "(the emulator's switch for failsafe and override testing) and sets "
+                  "OVERRIDE_IMMEDIATE, so the IO gives the pilot the outputs as soon as it "
+                  "loses the FMU.",
+             values={0: "fixed wing only (E14)", 1: "all vehicles"}),
     *_per_output("PWM_MAIN_DIS", "Disarmed PWM",
                  "-1 uses PWM_DISARMED; 0 sends no pulses on this output while disarmed."),
     *_per_output("PWM_MAIN_FAIL", "Failsafe PWM",
