@@ -6,6 +6,8 @@ MAVLink is reachable on 127.0.0.1 the way PX4 SITL users expect:
 * QGroundControl and MAVProxy: the vehicle sends to UDP 14550 (QGC finds it by itself;
   ``mavproxy.py --master=udpin:127.0.0.1:14550``),
 * MAVSDK and other API clients: the vehicle sends to UDP 14540 (``udp://:14540``),
+* TELEM1 and TELEM2 (the radio connectors, MAVLink on TELEM1 at 57600) on host
+  pseudo-terminals, as a radio modem plugged into a laptop would appear,
 
 and the FMU console (nsh) is on a host pseudo-terminal and a TCP port, which ``hil shell``
 finds by itself. The safety switch is pressed for the user unless
@@ -36,7 +38,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
-                       console=True, udp_bridge=True, fresh_fram=not keep_fram,
+                       console=True, udp_bridge=True, telem_pty=True,
+                       fresh_fram=not keep_fram,
                        params={"EKF2_MAG_DECL": 2.6, **(params or {})})
     orch, dev = build_system(cfg)
     say = (lambda text: None) if quiet else (lambda text: print(text, flush=True))
@@ -57,6 +60,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
             say("  QGroundControl / MAVProxy: the vehicle sends to udp 127.0.0.1:14550 "
                 "(mavproxy.py --master=udpin:127.0.0.1:14550)")
             say("  MAVSDK / API:               udp://:14540")
+            say(f"  TELEM1 (MAVLink, 57600):    {dev['telem1'].pty_name}   "
+                f"TELEM2: {dev['telem2'].pty_name}")
             say(f"  console (nsh):              hil shell   (tcp 127.0.0.1:{console.tcp_port}, "
                 f"pty {console.pty_name})")
             say("  Ctrl-C to stop.")
@@ -80,7 +85,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
         return 130
     finally:
         withdraw()
-        for name in ("console", "udp"):
+        for name in ("console", "udp", "telem1", "telem2"):
             close = getattr(dev.get(name), "close", None)
             if close is not None:
                 close()

@@ -49,6 +49,7 @@ class SystemConfig:
     trace_path: str | None = None
     fresh_fram: bool = True           # start from erased FRAM (reproducible runs)
     host_clock: bool = False          # let `top` show host time (not deterministic)
+    telem_pty: bool = False           # TELEM1/TELEM2 bridged to host pseudo-terminals
     gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
 
@@ -95,6 +96,16 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         hub.add(bridge)
         devices["console"] = bridge
         wiring += uart_link(("fmu", "console"), (WORLD, "console"))
+    if cfg.telem_pty:
+        from hil.console import SerialBridge
+
+        for port in ("telem1", "telem2"):
+            # A radio modem on the connector: its serial side is a host pty (57600 8N1, the
+            # FMU's default for TELEM links), e.g. mavproxy.py --master=/dev/pts/N.
+            tb = SerialBridge(port, baud=57_600, tcp_port=None)
+            hub.add(tb)
+            devices[port] = tb
+            wiring += uart_link(("fmu", port), (WORLD, port))
     if cfg.gcs or cfg.udp_bridge:
         from hil.mavlink_bridge import udp_wires
 
