@@ -38,7 +38,7 @@ from typing import Any
 
 import can
 
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel
+from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
 
 __all__ = [
     "ERROR_FRAME_BITS",
@@ -429,7 +429,8 @@ class CanController:
             return
         fifo.append(rx)
         if self._rx_handler is not None:
-            self.kernel.call_at(t_ns, self._isr, self._rx_handler, t_ns, priority=PRIO_ISR)
+            self.kernel.call_at(t_ns, call_in_isr, self.kernel, self._rx_handler, t_ns,
+                                priority=PRIO_ISR)
 
     def _receive_error(self) -> None:
         if self.rec < 255:
@@ -443,7 +444,7 @@ class CanController:
             if self.tec > 0 and not self._bus_off:
                 self.tec -= 1
         if self._tx_handler is not None:
-            self.kernel.call_at(t_ns, self._isr, self._tx_handler, t_ns, msg, ok,
+            self.kernel.call_at(t_ns, call_in_isr, self.kernel, self._tx_handler, t_ns, msg, ok,
                                 priority=PRIO_ISR)
 
     def _tx_error(self, t_ns: int, slot: int, msg: can.Message, ack_error: bool) -> None:
@@ -474,15 +475,6 @@ class CanController:
         self.rec = 0
         if self._next_mailbox() is not None:
             self.bus._request_arbitration(self.kernel.now_ns)
-
-    def _isr(self, handler: Callable[..., Any], *args: Any) -> None:
-        k = self.kernel
-        was = k.in_isr
-        k.in_isr = True
-        try:
-            handler(*args)
-        finally:
-            k.in_isr = was
 
     def __repr__(self) -> str:
         return f"<CanController {self.name} {self.state} TEC={self.tec} REC={self.rec}>"

@@ -39,7 +39,7 @@ import re
 from collections.abc import Callable
 from typing import Any
 
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel
+from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
 
 __all__ = ["ExtiLine", "Gpio", "Pin", "PinHandler", "PinListener", "call_in_isr"]
 
@@ -52,20 +52,6 @@ PinHandler = Callable[["Pin", int], None]
 
 _PIN_NAME = re.compile(r"^P([A-K])(\d{1,2})$")
 _PULLS = (None, "up", "down")
-
-
-def call_in_isr(kernel: Kernel, fn: Callable[..., Any], *args: Any) -> Any:
-    """Call ``fn(*args)`` with ``kernel.in_isr`` set, restoring the previous value afterwards.
-
-    Interrupt handlers must know they run in interrupt context (no blocking bus transfers in
-    PX4 style drivers, no sleeping); nested use keeps the flag right.
-    """
-    prev = kernel.in_isr
-    kernel.in_isr = True
-    try:
-        return fn(*args)
-    finally:
-        kernel.in_isr = prev
 
 
 class ExtiLine:

@@ -18,6 +18,7 @@ import heapq
 from typing import Any, Callable
 
 __all__ = [
+    "call_in_isr",
     "Kernel",
     "KernelError",
     "Periodic",
@@ -318,3 +319,18 @@ class Kernel:
 
     def __repr__(self) -> str:
         return f"<Kernel {self.name} t={self.now_ns} ns, {len(self)} pending>"
+
+
+def call_in_isr(kernel: Kernel, fn: Callable[..., Any], *args: Any) -> Any:
+    """Call ``fn(*args)`` with ``kernel.in_isr`` set, restoring the previous value afterwards.
+
+    Interrupt handlers must know they run in interrupt context (no blocking bus transfers in
+    PX4 style drivers, no sleeping); nested use keeps the flag right. Every peripheral's
+    interrupt (UART, CAN, timers, EXTI) goes through this.
+    """
+    prev = kernel.in_isr
+    kernel.in_isr = True
+    try:
+        return fn(*args)
+    finally:
+        kernel.in_isr = prev

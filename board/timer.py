@@ -33,8 +33,8 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-from board.gpio import Pin, call_in_isr
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel
+from board.gpio import Pin
+from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
 
 __all__ = ["REGISTERS", "PwmListener", "Timer", "TimerChannel", "TimerIrqHandler"]
 

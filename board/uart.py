@@ -23,7 +23,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from board.kernel import PRIO_ISR, Kernel
+from board.kernel import PRIO_ISR, Kernel, call_in_isr
 from board.uart_line import (
     BREAK,
     FE,
@@ -236,7 +236,7 @@ class Uart:
         self._tc_event = None
         handler = self._tc_handler
         if handler is not None:
-            self._isr(handler, self.kernel.now_ns)
+            call_in_isr(self.kernel, handler, self.kernel.now_ns)
 
     # -- receiver: entry point from the link ----------------------------------------------------
 
@@ -471,7 +471,7 @@ class Uart:
             self._accept(bytes((byte & 0xFF,)))
             return
         self.rx_bytes += 1
-        self._isr(handler, self.kernel.now_ns, byte, flags)
+        call_in_isr(self.kernel, handler, self.kernel.now_ns, byte, flags)
 
     def _schedule_idle(self, t_ns: int) -> None:
         Kernel.cancel(self._idle_event)
@@ -483,16 +483,7 @@ class Uart:
         self._idle_event = None
         handler = self._idle_handler
         if handler is not None:
-            self._isr(handler, self.kernel.now_ns)
-
-    def _isr(self, handler: Callable[..., Any], *args: Any) -> None:
-        k = self.kernel
-        was = k.in_isr
-        k.in_isr = True
-        try:
-            handler(*args)
-        finally:
-            k.in_isr = was
+            call_in_isr(self.kernel, handler, self.kernel.now_ns)
 
     def __repr__(self) -> str:
         return f"<Uart {self.name} {self._config}>"
