@@ -1,0 +1,52 @@
+"""CPU time per virtual second of the default flight, split by board (a tool, not a figure).
+
+Runs the flight one-process (``mode="local"``) and charges the process CPU time of each
+board's quantum to that board; the rest is the world, the orchestrator and the ground station.
+CPU time, unlike wall time, hardly moves when other work shares the machine, so this is the
+number to watch while optimising a board. ``python -m bench.cpu_split [--duration S]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import tempfile
+import time
+
+from board.endpoint import LocalHandle
+from hil.flight import FlightConfig, fly
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--duration", type=float, default=None,
+                    help="stop after this many virtual seconds (default: the whole flight)")
+    args = ap.parse_args()
+    spent: collections.Counter[str] = collections.Counter()
+    orig = LocalHandle.post_advance
+    clock = time.process_time
+
+    def post_advance(self, start_ns, until_ns, inputs):  # noqa: ANN001, ANN202
+        t0 = clock()
+        orig(self, start_ns, until_ns, inputs)
+        spent[self.name] += clock() - t0
+
+    LocalHandle.post_advance = post_advance  # type: ignore[method-assign]
+    cfg = dict(mode="local", progress=False, plot=False)
+    if args.duration:
+        cfg["duration_s"] = args.duration
+    t0 = clock()
+    with tempfile.TemporaryDirectory() as out:
+        summary = fly(FlightConfig(out_dir=out, **cfg))
+    total = clock() - t0
+    virtual = summary["phases"][-1]["t_s"]
+    rest = total - sum(spent.values())
+    for name, value in [*spent.most_common(), ("world+orchestrator+gcs", rest),
+                        ("total", total)]:
+        print(f"{name:24s} {value:7.2f} s CPU  {1000 * value / virtual:6.0f} ms per virtual s")
+    print(f"virtual {virtual:.1f} s; FMU-bound rtf {virtual / spent['fmu']:.2f}, "
+          f"one-process rtf {virtual / total:.2f}")
+
+
+if __name__ == "__main__":
+    main()
