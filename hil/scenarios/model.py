@@ -21,7 +21,8 @@ __all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
            "scenario_from_dict"]
 
 TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
-            "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference"}
+            "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
+            "known_failure"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
               "settle")
@@ -105,6 +106,8 @@ class Scenario:
     expect: list[Expectation] = field(default_factory=list)
     trace: bool = True
     reference: str = ""             # where the expected behaviour comes from (PX4 docs, params)
+    known_failure: str = ""         # why this tree fails it today (the library test expects
+                                    # the failure, strictly: a fix turns it into a pass)
     source: str = ""                # the file it came from
 
     def fault_kinds(self) -> set[str]:
@@ -353,6 +356,12 @@ def _from_dict(data: Any, source: str) -> Scenario:
     if not isinstance(expect_raw, list) or not expect_raw:
         raise ScenarioError("expect: a non-empty list of expectations (a scenario without "
                             "one asserts nothing)")
+    started: set[str] = set()
+    for s in timeline:
+        if s.kind == "fault":
+            started.add(s.event or "")
+        if s.kind == "clear" and s.arg not in started:
+            raise ScenarioError(f"{s.where}.clear: no fault named {s.arg!r} started before it")
     expect = [_expectation(i, e) for i, e in enumerate(expect_raw)]
     known = {"start"} | set(events)
     for s in timeline:
@@ -363,12 +372,6 @@ def _from_dict(data: Any, source: str) -> Scenario:
             if ev is not None and ev not in known:
                 raise ScenarioError(f"expect[{i}]: unknown event {ev!r} (known: "
                                     f"{', '.join(sorted(known))})")
-    started: set[str] = set()
-    for s in timeline:
-        if s.kind == "fault":
-            started.add(s.event or "")
-        if s.kind == "clear" and s.arg not in started:
-            raise ScenarioError(f"{s.where}.clear: no fault named {s.arg!r} started before it")
     sc = Scenario(
         name=str(name), doc=str(d.get("doc", "")).strip(), seed=seed, rc=rc,
         airframe=int(d.get("airframe", 4011)), params=dict(params), initial=dict(initial),
@@ -376,7 +379,8 @@ def _from_dict(data: Any, source: str) -> Scenario:
         sample_ms=_num(d.get("sample_ms", 20.0), "sample_ms"),
         duration_s=_num(d.get("duration", 120.0), "duration"), events=events,
         timeline=timeline, expect=expect, trace=bool(d.get("trace", True)),
-        reference=str(d.get("reference", "")).strip(), source=source)
+        reference=str(d.get("reference", "")).strip(),
+        known_failure=str(d.get("known_failure", "") or "").strip(), source=source)
     if not 1.0 <= sc.sample_ms <= 1000.0:
         raise ScenarioError(f"sample_ms: {sc.sample_ms} outside 1..1000")
     return sc
