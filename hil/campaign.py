@@ -19,9 +19,10 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 __all__ = ["Run", "expand", "main", "parse_seeds", "run_campaign", "run_one", "write_report"]
 
@@ -69,10 +70,10 @@ def expand(scenarios: Iterable[str], seeds: Iterable[int],
 
 def run_one(run: Run, out_root: str, one_process: bool = False) -> dict[str, Any]:
     """Run one scenario variation; a plain dict result (picklable, JSON-able)."""
+    import multiprocessing
+
     from hil.scenarios import ScenarioError, load_scenario, run_scenario
     from hil.scenarios.report import repro_command
-
-    import multiprocessing
 
     # A daemonic worker (Dask's by default) may not start the board processes: run both
     # boards in the worker then (same results, see hil.system's one-process mode).
@@ -140,7 +141,8 @@ def run_campaign(runs: list[Run], out_dir: str, *, jobs: int | None = None,
             if cluster is not None:
                 cluster.close()
     else:
-        from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures import as_completed as cf_completed
         from multiprocessing import get_context
 
         with ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1,

@@ -19,8 +19,9 @@ from __future__ import annotations
 import heapq
 import importlib
 import pkgutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 __all__ = ["CATALOGUE", "LOAD_ERRORS", "ActiveFault", "Fault", "FaultError", "FaultKind",
            "Injector", "Rig", "fault_kind", "get_kind", "load_kinds"]

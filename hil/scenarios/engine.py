@@ -14,9 +14,10 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from hil.faults import ActiveFault, Injector
 from hil.gcs import GcsTimeout
@@ -478,19 +479,16 @@ def run_scenario(sc: Scenario, *, seed: int | None = None, out_dir: str = "out/s
     orch.log = runner.say
     aborted = None
     wall0 = time.perf_counter()
-    try:
-        with orch:
-            dev["gcs"].attach(orch)
-            runner.monitor.sample()
-            try:
-                runner.play()
-            except _Aborted as exc:
-                aborted = str(exc)
-                runner.say(f"aborted: {aborted}")
-            expectations = runner.monitor.finish()
-            rtf = orch.rtf
-    except ScenarioError:
-        raise
+    with orch:
+        dev["gcs"].attach(orch)
+        runner.monitor.sample()
+        try:
+            runner.play()
+        except _Aborted as exc:
+            aborted = str(exc)
+            runner.say(f"aborted: {aborted}")
+        expectations = runner.monitor.finish()
+        rtf = orch.rtf
     wall = time.perf_counter() - wall0
     if runner.monitor.error and not aborted:
         aborted = runner.monitor.error

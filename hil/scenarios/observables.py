@@ -18,7 +18,8 @@ satisfies no condition.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from board.endpoint import BoardDied
 

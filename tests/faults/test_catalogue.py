@@ -8,7 +8,7 @@ import textwrap
 
 import pytest
 
-import hil.faults as faults
+from hil import faults
 from hil.faults import CATALOGUE, LEVELS, LOAD_ERRORS, FaultError, Injector, get_kind
 from hil.rc import RcRig, Transmitter
 
