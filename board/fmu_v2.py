@@ -346,3 +346,11 @@ class FmuV2Board(Board):
     def ctl_fault(self, device: str, fault: str, value: Any = True) -> None:
         """Set a fault on a device model (see peripherals/faults.py)."""
         setattr(self.devices[device].faults, fault, value)
+
+    def ctl_gps_fault(self, what: str, *args: Any) -> None:
+        """A fault of the GPS module on the connector (see peripherals/ublox/receiver.py):
+        ``lose_fix`` (bool), ``degrade`` (factor), ``jump`` (north, east, down m), ``jam``
+        (0..255), ``set_absent`` (bool)."""
+        if what not in ("lose_fix", "degrade", "jump", "jam", "set_absent"):
+            raise ValueError(f"no GPS fault {what!r} (lose_fix, degrade, jump, jam, set_absent)")
+        getattr(self.devices["gps"], what)(*args)

@@ -49,6 +49,82 @@ def _cmd_params(args: argparse.Namespace) -> int:
     return params_doc.main(args.out)
 
 
+def _parse_params(items: list[str] | None) -> dict[str, list[float | int]]:
+    """``NAME=V1,V2`` -> {NAME: [V1, V2]}; raises ValueError with the bad item."""
+    out: dict[str, list[float | int]] = {}
+    for item in items or []:
+        name, sep, values = item.partition("=")
+        if not sep or not name or not values:
+            raise ValueError(f"--param {item!r}: expected NAME=VALUE[,VALUE...]")
+        vals: list[float | int] = []
+        for v in values.split(","):
+            try:
+                vals.append(int(v))
+            except ValueError:
+                try:
+                    vals.append(float(v))
+                except ValueError:
+                    raise ValueError(f"--param {item!r}: {v!r} is not a number") from None
+        out[name] = vals
+    return out
+
+
+def _cmd_scenario(args: argparse.Namespace) -> int:
+    import json
+
+    from hil.scenarios import ScenarioError, format_table, load_scenario, run_scenario
+
+    try:
+        params = {k: v[-1] for k, v in _parse_params(args.param).items()}
+        sc = load_scenario(args.file)
+    except (ScenarioError, ValueError) as exc:
+        print(f"hil scenario: {exc}", file=sys.stderr)
+        return 2
+    out = args.out or f"out/scenarios/{sc.name}"
+    try:
+        result = run_scenario(sc, seed=args.seed, out_dir=out,
+                              one_process=True if args.one_process else None, params=params,
+                              progress=None if args.json else
+                              (lambda m: print(f"  {m}", flush=True)))
+    except ScenarioError as exc:
+        print(f"hil scenario: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result.as_dict(), indent=1))
+    else:
+        print(format_table(result))
+    return 0 if result.passed else 1
+
+
+def _cmd_faults(args: argparse.Namespace) -> int:
+    import json
+    import textwrap
+
+    from hil.faults import CATALOGUE, LOAD_ERRORS
+
+    kinds = sorted(CATALOGUE.values(), key=lambda k: (k.level, k.name))
+    if args.json:
+        print(json.dumps([{"name": k.name, "level": k.level, "targets": list(k.targets),
+                           "params": k.params, "undoable": k.stop is not None, "doc": k.doc}
+                          for k in kinds], indent=1))
+    else:
+        for k in kinds:
+            params = ", ".join(f"{p}={v}" for p, v in k.params.items())
+            print(f"{k.name}  [{k.level}]  targets: {', '.join(k.targets) or 'none'}"
+                  f"{'  params: ' + params if params else ''}"
+                  f"{'' if k.stop else '  (cannot be undone)'}")
+            print(textwrap.indent(textwrap.fill(k.doc, 92), "    "))
+    for mod, err in LOAD_ERRORS.items():
+        print(f"hil faults: module {mod} failed to load: {err}", file=sys.stderr)
+    return 1 if LOAD_ERRORS else 0
+
+
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    from hil.campaign import main
+
+    return main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
@@ -102,6 +178,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-c", dest="command", default=None, help="run one command and exit")
     p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a reply")
     p.set_defaults(func=_cmd_shell)
+
+    p = sub.add_parser("scenario", help="run a fault scenario and judge its expectations")
+    p.add_argument("file", help="scenario YAML file (hil/scenarios/library/ has the shipped ones)")
+    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument("--out", default=None, help="output folder (default out/scenarios/NAME)")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="override a parameter (repeatable)")
+    p.add_argument("--one-process", action="store_true",
+                   help="run both boards in this process (same results)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=_cmd_scenario)
+
+    p = sub.add_parser("faults", help="list the fault catalogue")
+    p.add_argument("--json", action="store_true", help="print the catalogue as JSON")
+    p.set_defaults(func=_cmd_faults)
+
+    p = sub.add_parser("campaign", help="run scenarios x seeds x parameter values in parallel")
+    p.add_argument("scenarios", nargs="*",
+                   help="scenario files (default: the whole library)")
+    p.add_argument("--seeds", default="1", help="seeds: 1-4, 1,3,7 or 5 (default 1)")
+    p.add_argument("--param", action="append", metavar="NAME=V1,V2",
+                   help="a parameter's values to vary (repeatable: the product is run)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="local worker processes (default: CPU count)")
+    p.add_argument("--dask", default=None, metavar="ADDRESS|local",
+                   help="run on a Dask cluster (scheduler address, or 'local' for a "
+                        "LocalCluster)")
+    p.add_argument("--one-process", action="store_true",
+                   help="each run keeps both boards in its worker process")
+    p.add_argument("--out", default="out/campaign", help="output folder (report.md, report.json)")
+    p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
     p.add_argument("--out", default=None, help="write to this file instead of stdout")

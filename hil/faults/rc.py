@@ -1,0 +1,148 @@
+"""RC faults: the radio link between the pilot's transmitter and the receiver on the IO.
+
+They act on the orchestrator's RC rig (:mod:`hil.rc`): the transmitter's power and the
+receivers' link windows. What reaches the IO's RC input is then whatever the receiver model
+puts on the wire in that situation, protocol by protocol:
+
+* S.BUS (Futaba, FrSky): frames keep coming every 7/14 ms with the *frame lost* flag and the
+  last good values; after the receiver's failsafe delay the *failsafe* bit is set too and the
+  channels go to the bound failsafe preset (or hold, or stop).
+* DSM (Spektrum satellites): there is no flag; the satellite simply stops sending, and the IO
+  declares RC lost 200 ms after the last frame.
+* PPM: the receiver repeats the last pulse train, then stops pulsing (or sends its preset).
+
+The rig runs one quantum ahead of the boards (its script is fixed), so a fault takes effect
+from the first RC frame that starts after the current quantum, at most one quantum late.
+
+Target ``rc`` means every receiver on the rig; ``sbus``, ``dsm`` or ``ppm`` one receiver kind
+(an error if the rig has none of that kind).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hil.faults import FaultError, fault_kind
+
+RC_TARGETS = ("rc", "sbus", "dsm", "ppm")
+
+
+def _receivers(rig: Any, target: str, kind: str) -> list[Any]:
+    rc = rig.dev.get("rc")
+    if rc is None:
+        raise FaultError(f"fault {kind}: this rig has no RC receiver (SystemConfig rc=None)")
+    rxs = [rx for rx in rc.receivers if target == "rc" or rx.kind == target]
+    if not rxs:
+        fitted = ", ".join(rx.kind for rx in rc.receivers) or "none"
+        raise FaultError(f"fault {kind}: no {target} receiver on this rig (fitted: {fitted})")
+    return rxs
+
+
+def _open(windows: Any, t_ns: int, payload: Any = True) -> tuple:
+    windows.add(t_ns, None, payload)
+    return windows.items[-1]
+
+
+def _close(windows: Any, item: tuple, t_ns: int) -> None:
+    """End an open window at ``t_ns`` (the receivers keep their fault windows as a list)."""
+    for i, it in enumerate(windows.items):
+        if it is item:
+            windows.items[i] = (item[0], max(t_ns, item[0]), item[2])
+            return
+
+
+@fault_kind("rc_tx_off", level="rc", targets=("rc",),
+            doc="The pilot's transmitter is switched off or its battery dies: every receiver "
+                "bound to it loses the link at once and does what its protocol does on loss "
+                "(S.BUS: frame-lost then failsafe flag; DSM: silence; PPM: hold, then no "
+                "pulses). PX4 reports RC lost and, after COM_RC_LOSS_T, takes the NAV_RCL_ACT "
+                "reaction (Return by default) once in the air.")
+def tx_off_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
+    _receivers(rig, target, "rc_tx_off")
+    rig.dev["rc"].tx.power(t_ns, False)
+
+
+@tx_off_start.stopper
+def tx_off_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
+    rig.dev["rc"].tx.power(t_ns, True)
+
+
+@fault_kind("rc_out_of_range", level="rc", targets=RC_TARGETS,
+            doc="The receiver loses the RF link with the transmitter still on: out of range, "
+                "a shadowed antenna, 2.4 GHz interference. The receiver behaves as on any link "
+                "loss (see the module doc), and recovers when the link comes back.")
+def oor_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
+    return [(rx, _open(rx._out_of_range, t_ns)) for rx in _receivers(rig, target,
+                                                                       "rc_out_of_range")]
+
+
+@oor_start.stopper
+def oor_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
+    for rx, item in token:
+        _close(rx._out_of_range, item, t_ns)
+
+
+@fault_kind("rc_sbus_failsafe", level="rc", targets=("sbus",),
+            doc="An S.BUS receiver sets its failsafe flag with a good RF link (a receiver "
+                "that decided on failsafe by itself, e.g. on low receiver voltage, or a "
+                "failsafe test from the transmitter). The channels still carry values; the IO "
+                "must treat the frame as RC lost, as PX4's S.BUS decoder does.")
+def sbus_fs_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
+    return [(rx, _open(rx._forced_failsafe, t_ns)) for rx in _receivers(rig, target,
+                                                                          "rc_sbus_failsafe")]
+
+
+@sbus_fs_start.stopper
+def sbus_fs_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
+    for rx, item in token:
+        _close(rx._forced_failsafe, item, t_ns)
+
+
+@fault_kind("rc_frame_loss", level="rc", targets=RC_TARGETS, prob=1.0,
+            doc="A burst of lost RF frames (fading, a brief blockage): with ``prob`` 1 every "
+                "frame in the window is lost, below 1 each frame is lost with that "
+                "probability (seeded, reproducible). Short bursts are bridged by the "
+                "receiver's hold and the IO's 200 ms RC timeout; PX4 must not fail safe for "
+                "them, only count them (S.BUS frame-lost flag, DSM fades).")
+def loss_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
+    prob = float(params["prob"])
+    if not 0.0 < prob <= 1.0:
+        raise FaultError(f"fault rc_frame_loss: prob {prob} outside (0, 1]")
+    token = []
+    for rx in _receivers(rig, target, "rc_frame_loss"):
+        if prob >= 1.0:
+            token.append((rx, _open(rx._dropped, t_ns), None))
+        else:
+            token.append((rx, None, rx.frame_loss_prob))
+            rx.frame_loss_prob = prob
+    return token
+
+
+@loss_start.stopper
+def loss_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
+    for rx, item, old_prob in token:
+        if item is not None:
+            _close(rx._dropped, item, t_ns)
+        else:
+            rx.frame_loss_prob = old_prob
+
+
+@fault_kind("rc_glitch", level="rc", targets=RC_TARGETS, byte_prob=0.2, spike_prob=0.0,
+            doc="Corruption on the receiver's wire or in its decoded channels (EMI on the "
+                "signal lead, a marginal receiver): per frame, with ``byte_prob`` one byte "
+                "(PPM: one spurious edge pair) is damaged, with ``spike_prob`` one channel "
+                "jumps to a random value in a well-formed frame. The IO's decoder must reject "
+                "damaged frames (parity, framing, sync) without declaring RC lost for a few "
+                "bad ones.")
+def glitch_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
+    bp, sp = float(params["byte_prob"]), float(params["spike_prob"])
+    if not (0.0 <= bp <= 1.0 and 0.0 <= sp <= 1.0):
+        raise FaultError(f"fault rc_glitch: probabilities must be in [0, 1], got {bp}, {sp}")
+    return [(rx, _open(rx._glitch, t_ns, (bp, sp))) for rx in _receivers(rig, target,
+                                                                           "rc_glitch")]
+
+
+@glitch_start.stopper
+def glitch_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
+    for rx, item in token:
+        _close(rx._glitch, item, t_ns)

@@ -1,0 +1,401 @@
+"""A scenario as data: what to build, what to do when, what must happen by when.
+
+Loaded from YAML (:func:`load_scenario`) or from a Python mapping (:func:`scenario_from_dict`);
+every field is checked when it is loaded, so a typo is an error naming the file, the place and
+the allowed values before anything boots. The format is documented in docs/faults.md.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+from hil.faults import CATALOGUE, FaultError, get_kind
+from hil.scenarios.conditions import Condition, ConditionError, parse_condition
+from hil.scenarios.observables import is_observable
+
+__all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
+           "scenario_from_dict"]
+
+TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
+            "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
+            "known_failure"}
+INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
+STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
+              "settle")
+PILOT_ACTIONS = ("sticks", "switch", "channel", "safety")
+GCS_COMMANDS = ("arm", "force_arm", "disarm", "takeoff", "land", "rtl", "mode", "mission",
+                "start_mission", "param")
+#: mode names a GCS can select -> (PX4 main mode, sub mode)
+GCS_MODES = {"manual": (1, 0), "altitude": (2, 0), "position": (3, 0), "hold": (4, 3),
+             "mission": (4, 4), "return": (4, 5), "land": (4, 6), "takeoff": (4, 2),
+             "stabilized": (7, 0), "acro": (5, 0)}
+EXPECT_KINDS = ("within", "eventually", "always", "never")
+RC_KINDS = ("sbus", "dsm", "ppm", None)
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be loaded or run as written (the message says where)."""
+
+
+@dataclass
+class Step:
+    kind: str                       # one of STEP_KINDS
+    arg: Any                        # the step's own value, normalised per kind
+    at_s: float | None = None       # run until this virtual time first
+    name: str | None = None         # the event this step raises when it runs
+    where: str = ""                 # "timeline[3]" for messages
+
+    @property
+    def event(self) -> str | None:
+        if self.name:
+            return self.name
+        if self.kind == "fault":
+            return self.arg["name"] or self.arg["kind"]
+        if self.kind == "gcs":
+            return f"gcs.{self.arg['cmd']}"
+        if self.kind == "pilot":
+            return f"pilot.{self.arg['action']}"
+        if self.kind in ("ready", "hover", "shell"):
+            return self.kind
+        return None
+
+
+@dataclass
+class Expectation:
+    kind: str                       # within | eventually | always | never
+    cond: Condition
+    of: str = "start"               # the event it counts from
+    window_s: float | None = None   # within: deadline; always/never: window (None: to the end)
+    until: str | None = None        # always/never: stop checking at this event
+    label: str = ""
+
+    @property
+    def text(self) -> str:
+        if self.label:
+            return self.label
+        if self.kind == "within":
+            return f"within {self.window_s:g} s of {self.of}: {self.cond}"
+        head = self.kind
+        if self.of != "start":
+            head += f" from {self.of}"
+        if self.window_s is not None:
+            head += f" for {self.window_s:g} s"
+        if self.until:
+            head += f" until {self.until}"
+        return f"{head}: {self.cond}"
+
+
+@dataclass
+class Scenario:
+    name: str
+    doc: str = ""
+    seed: int = 1
+    rc: str | None = "sbus"
+    airframe: int = 4011
+    params: dict[str, int | float] = field(default_factory=dict)
+    initial: dict[str, Any] = field(default_factory=dict)
+    one_process: bool = False
+    sample_ms: float = 20.0
+    duration_s: float = 120.0       # hard limit of virtual time
+    events: dict[str, Condition] = field(default_factory=dict)
+    timeline: list[Step] = field(default_factory=list)
+    expect: list[Expectation] = field(default_factory=list)
+    trace: bool = True
+    reference: str = ""             # where the expected behaviour comes from (PX4 docs, params)
+    known_failure: str = ""         # why this tree fails it today (the library test expects
+                                    # the failure, strictly: a fix turns it into a pass)
+    source: str = ""                # the file it came from
+
+    def fault_kinds(self) -> set[str]:
+        return {s.arg["kind"] for s in self.timeline if s.kind == "fault"}
+
+
+def _num(v: Any, where: str, *, positive: bool = False, allow_zero: bool = True) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ScenarioError(f"{where}: expected a number of seconds, got {v!r}")
+    if v < 0 or (positive and v == 0 and not allow_zero):
+        raise ScenarioError(f"{where}: must be positive, got {v!r}")
+    return float(v)
+
+
+def _mapping(v: Any, where: str) -> dict:
+    if not isinstance(v, dict):
+        raise ScenarioError(f"{where}: expected a mapping, got {v!r}")
+    return v
+
+
+def _cond(spec: Any, where: str) -> Condition:
+    try:
+        return parse_condition(spec, is_observable, where)
+    except ConditionError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def _only(d: dict, allowed: set[str] | tuple[str, ...], where: str) -> None:
+    bad = set(d) - set(allowed)
+    if bad:
+        raise ScenarioError(f"{where}: unknown key(s) {', '.join(sorted(map(str, bad)))} "
+                            f"(allowed: {', '.join(sorted(allowed))})")
+
+
+def _fault(v: Any, where: str) -> dict[str, Any]:
+    if isinstance(v, str):
+        v = {"kind": v}
+    d = _mapping(v, where)
+    _only(d, {"kind", "target", "params", "duration", "until", "name"}, where)
+    if "kind" not in d:
+        raise ScenarioError(f"{where}: a fault needs a 'kind' (one of: "
+                            f"{', '.join(sorted(CATALOGUE))})")
+    try:
+        kind = get_kind(str(d["kind"]))
+    except FaultError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+    target = str(d.get("target") or (kind.targets[0] if kind.targets else ""))
+    params = d.get("params") or {}
+    _mapping(params, f"{where}.params")
+    try:
+        full = kind.check(target, params)
+    except FaultError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+    duration = d.get("duration")
+    if duration is not None:
+        duration = _num(duration, f"{where}.duration")
+    until = _cond(d["until"], f"{where}.until") if d.get("until") is not None else None
+    if (duration is not None or until is not None) and kind.stop is None:
+        raise ScenarioError(f"{where}: fault {kind.name} cannot be undone, so it takes no "
+                            f"duration or until")
+    if duration is not None and until is not None:
+        raise ScenarioError(f"{where}: give a duration or an until, not both")
+    return {"kind": kind.name, "target": target, "params": full, "duration": duration,
+            "until": until, "name": d.get("name")}
+
+
+def _pilot(v: Any, where: str) -> dict[str, Any]:
+    d = _mapping(v, where)
+    _only(d, set(PILOT_ACTIONS) | {"ramp"}, where)
+    acts = [k for k in d if k != "ramp"]
+    if len(acts) != 1:
+        raise ScenarioError(f"{where}: one pilot action per step ({', '.join(PILOT_ACTIONS)})")
+    act = acts[0]
+    ramp = _num(d.get("ramp", 0.0), f"{where}.ramp")
+    val = d[act]
+    if act == "sticks":
+        _only(_mapping(val, f"{where}.sticks"), {"roll", "pitch", "yaw", "throttle"},
+              f"{where}.sticks")
+        for k, x in val.items():
+            lo = 0.0 if k == "throttle" else -1.0
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not lo <= x <= 1.0:
+                raise ScenarioError(f"{where}.sticks.{k}: {x!r} outside {lo:g}..1")
+    elif act == "switch":
+        _mapping(val, f"{where}.switch")
+        for k, x in val.items():
+            if not isinstance(x, int) or not 0 <= x <= 2:
+                raise ScenarioError(f"{where}.switch.{k}: position {x!r} not 0, 1 or 2")
+    elif act == "channel":
+        _mapping(val, f"{where}.channel")
+        for k, x in val.items():
+            if not isinstance(k, int) or not isinstance(x, (int, float)) or not 800 <= x <= 2200:
+                raise ScenarioError(f"{where}.channel: {k!r}: {x!r} must be channel number: "
+                                    f"us in 800..2200")
+    elif act == "safety":
+        val = _num(val, f"{where}.safety")  # how long the button is held
+    return {"action": act, "value": val, "ramp": ramp}
+
+
+def _gcs(v: Any, where: str) -> dict[str, Any]:
+    if isinstance(v, str):
+        v = {v: None}
+    d = _mapping(v, where)
+    if len(d) != 1:
+        raise ScenarioError(f"{where}: one GCS command per step ({', '.join(GCS_COMMANDS)})")
+    (cmd, arg), = d.items()
+    if cmd not in GCS_COMMANDS:
+        raise ScenarioError(f"{where}: unknown GCS command {cmd!r} (known: "
+                            f"{', '.join(GCS_COMMANDS)})")
+    if cmd == "takeoff":
+        arg = _num(arg if arg is not None else 5.0, f"{where}.takeoff")
+    elif cmd == "mode":
+        if not isinstance(arg, str) or arg.lower() not in GCS_MODES:
+            raise ScenarioError(f"{where}.mode: {arg!r} is not one of "
+                                f"{', '.join(GCS_MODES)}")
+        arg = arg.lower()
+    elif cmd == "mission":
+        if not isinstance(arg, list) or not arg:
+            raise ScenarioError(f"{where}.mission: a list of [north_m, east_m, alt_m] "
+                                f"waypoints relative to home")
+        for i, wp in enumerate(arg):
+            if (not isinstance(wp, list) or len(wp) != 3
+                    or not all(isinstance(x, (int, float)) for x in wp)):
+                raise ScenarioError(f"{where}.mission[{i}]: [north_m, east_m, alt_m], got {wp!r}")
+    elif cmd == "param":
+        _mapping(arg, f"{where}.param")
+    elif arg is not None:
+        raise ScenarioError(f"{where}.{cmd} takes no value")
+    return {"cmd": cmd, "arg": arg}
+
+
+def _wait(v: Any, where: str) -> dict[str, Any]:
+    if not isinstance(v, dict):
+        return {"for": _num(v, where)}
+    _only(v, {"until", "within"}, where)
+    if "until" not in v or "within" not in v:
+        raise ScenarioError(f"{where}: a conditional wait needs 'until' and 'within' "
+                            f"(a virtual-time budget)")
+    return {"until": _cond(v["until"], f"{where}.until"), "within": _num(v["within"],
+                                                                         f"{where}.within")}
+
+
+def _step(i: int, raw: Any) -> Step:
+    where = f"timeline[{i}]"
+    d = _mapping(raw, where)
+    kinds = [k for k in d if k in STEP_KINDS]
+    _only(d, set(STEP_KINDS) | {"at", "name"}, where)
+    if len(kinds) != 1:
+        raise ScenarioError(f"{where}: one action per step, one of {', '.join(STEP_KINDS)} "
+                            f"(got {', '.join(kinds) or 'none'})")
+    kind = kinds[0]
+    val = d[kind]
+    w = f"{where}.{kind}"
+    if kind == "wait":
+        arg: Any = _wait(val, w)
+    elif kind == "mark":
+        if not isinstance(val, str) or not val:
+            raise ScenarioError(f"{w}: an event name")
+        arg = val
+    elif kind == "pilot":
+        arg = _pilot(val, w)
+    elif kind == "gcs":
+        arg = _gcs(val, w)
+    elif kind == "fault":
+        arg = _fault(val, w)
+    elif kind == "clear":
+        if not isinstance(val, str):
+            raise ScenarioError(f"{w}: the name of a fault started earlier")
+        arg = val
+    elif kind == "shell":
+        if not isinstance(val, str) or not val.strip():
+            raise ScenarioError(f"{w}: an nsh command line")
+        arg = val
+    elif kind == "ready":
+        arg = {"within": _num((val or {}).get("within", 60) if isinstance(val, dict) else
+                              (val if val is not None else 60), w)}
+    elif kind == "hover":
+        val = val if isinstance(val, dict) else {"alt": val if val is not None else 5.0}
+        _only(val, {"alt", "within"}, w)
+        arg = {"alt": _num(val.get("alt", 5.0), f"{w}.alt"),
+               "within": _num(val.get("within", 90), f"{w}.within")}
+    else:  # settle
+        arg = {"within": _num(val, w)}
+    at = d.get("at")
+    name = d.get("name")
+    if name is not None and not isinstance(name, str):
+        raise ScenarioError(f"{where}.name: an event name")
+    if kind == "mark":
+        name = arg
+    return Step(kind, arg, _num(at, f"{where}.at") if at is not None else None, name, where)
+
+
+def _expectation(i: int, raw: Any) -> Expectation:
+    where = f"expect[{i}]"
+    d = _mapping(raw, where)
+    kinds = [k for k in d if k in EXPECT_KINDS]
+    if len(kinds) != 1:
+        raise ScenarioError(f"{where}: one of {', '.join(EXPECT_KINDS)} per expectation "
+                            f"(got {', '.join(map(str, d)) or 'nothing'})")
+    kind = kinds[0]
+    label = str(d.get("name", ""))
+    if kind == "within":
+        _only(d, {"within", "of", "that", "name"}, where)
+        if "that" not in d:
+            raise ScenarioError(f"{where}: 'within' needs 'that: CONDITION'")
+        return Expectation("within", _cond(d["that"], f"{where}.that"), str(d.get("of", "start")),
+                           _num(d["within"], f"{where}.within"), None, label)
+    _only(d, {kind, "from", "after", "for", "until", "name"}, where)
+    window = _num(d["for"], f"{where}.for") if "for" in d else None
+    of = str(d.get("from", d.get("after", "start")))
+    until = str(d["until"]) if "until" in d else None
+    return Expectation(kind, _cond(d[kind], f"{where}.{kind}"), of, window, until, label)
+
+
+def scenario_from_dict(data: Any, source: str = "<dict>") -> Scenario:
+    """A checked :class:`Scenario` from a mapping (the YAML document's shape)."""
+    try:
+        return _from_dict(data, source)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
+
+
+def _from_dict(data: Any, source: str) -> Scenario:
+    d = _mapping(data, "scenario")
+    _only(d, TOP_KEYS, "scenario")
+    name = d.get("name") or os.path.splitext(os.path.basename(source))[0]
+    seed = d.get("seed", 1)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"seed: a non-negative integer, got {seed!r}")
+    rc = d.get("rc", "sbus")
+    if rc not in RC_KINDS:
+        raise ScenarioError(f"rc: one of sbus, dsm, ppm or null, got {rc!r}")
+    params = _mapping(d.get("params") or {}, "params")
+    for k, v in params.items():
+        if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ScenarioError(f"params: {k!r}: {v!r} is not NAME: number")
+    initial = _mapping(d.get("initial") or {}, "initial")
+    _only(initial, INITIAL_KEYS, "initial")
+    events = {}
+    for ev, spec in _mapping(d.get("events") or {}, "events").items():
+        events[str(ev)] = _cond(spec, f"events.{ev}")
+    timeline_raw = d.get("timeline") or []
+    if not isinstance(timeline_raw, list):
+        raise ScenarioError("timeline: a list of steps")
+    timeline = [_step(i, s) for i, s in enumerate(timeline_raw)]
+    expect_raw = d.get("expect") or []
+    if not isinstance(expect_raw, list) or not expect_raw:
+        raise ScenarioError("expect: a non-empty list of expectations (a scenario without "
+                            "one asserts nothing)")
+    started: set[str] = set()
+    for s in timeline:
+        if s.kind == "fault":
+            started.add(s.event or "")
+        if s.kind == "clear" and s.arg not in started:
+            raise ScenarioError(f"{s.where}.clear: no fault named {s.arg!r} started before it")
+    expect = [_expectation(i, e) for i, e in enumerate(expect_raw)]
+    known = {"start"} | set(events)
+    for s in timeline:
+        if s.event:
+            known |= {s.event, f"{s.event}.end"}
+    for i, e in enumerate(expect):
+        for ev in (e.of, e.until):
+            if ev is not None and ev not in known:
+                raise ScenarioError(f"expect[{i}]: unknown event {ev!r} (known: "
+                                    f"{', '.join(sorted(known))})")
+    sc = Scenario(
+        name=str(name), doc=str(d.get("doc", "")).strip(), seed=seed, rc=rc,
+        airframe=int(d.get("airframe", 4011)), params=dict(params), initial=dict(initial),
+        one_process=bool(d.get("one_process", False)),
+        sample_ms=_num(d.get("sample_ms", 20.0), "sample_ms"),
+        duration_s=_num(d.get("duration", 120.0), "duration"), events=events,
+        timeline=timeline, expect=expect, trace=bool(d.get("trace", True)),
+        reference=str(d.get("reference", "")).strip(),
+        known_failure=str(d.get("known_failure", "") or "").strip(), source=source)
+    if not 1.0 <= sc.sample_ms <= 1000.0:
+        raise ScenarioError(f"sample_ms: {sc.sample_ms} outside 1..1000")
+    return sc
+
+
+def load_scenario(path: str) -> Scenario:
+    """Load and check a YAML scenario file."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ScenarioError(f"{path}: not valid YAML{at}: "
+                            f"{getattr(exc, 'problem', None) or exc}") from None
+    return scenario_from_dict(data, path)

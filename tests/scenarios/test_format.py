@@ -1,0 +1,121 @@
+"""The scenario format: what loads, and the clear error for what does not."""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.cli import main
+from hil.scenarios import ScenarioError, load_scenario, scenario_from_dict
+from hil.scenarios.conditions import ConditionError, parse_condition
+from hil.scenarios.observables import is_observable
+
+GOOD = {
+    "name": "demo", "seed": 3, "rc": "dsm", "params": {"NAV_RCL_ACT": 3},
+    "events": {"lost": "rc_lost"},
+    "timeline": [
+        {"wait": 2},
+        {"fault": {"kind": "rc_out_of_range", "target": "dsm", "duration": 1.5, "name": "oor"}},
+        {"pilot": {"sticks": {"throttle": 0.5}, "ramp": 1}},
+        {"gcs": {"takeoff": 4}, "at": 5},
+        {"wait": {"until": "alt_agl_m > 3", "within": 20}},
+    ],
+    "expect": [
+        {"within": 0.3, "of": "oor", "that": "rc_lost"},
+        {"eventually": "not rc_lost", "after": "oor.end"},
+        {"always": "motor_us between 900 2000", "from": "lost", "for": 2},
+        {"never": "estimator_fault"},
+    ],
+}
+
+
+def test_a_good_scenario_loads_with_its_events_and_texts():
+    sc = scenario_from_dict(GOOD)
+    assert (sc.name, sc.seed, sc.rc, sc.params) == ("demo", 3, "dsm", {"NAV_RCL_ACT": 3})
+    assert [s.kind for s in sc.timeline] == ["wait", "fault", "pilot", "gcs", "wait"]
+    assert sc.timeline[1].event == "oor" and sc.timeline[3].at_s == 5.0
+    assert sc.fault_kinds() == {"rc_out_of_range"}
+    assert [e.text for e in sc.expect] == [
+        "within 0.3 s of oor: rc_lost", "eventually from oor.end: not rc_lost",
+        "always from lost for 2 s: motor_us between 900 2000", "never: estimator_fault"]
+
+
+@pytest.mark.parametrize("patch, message", [
+    ({"timeline": [{"fault": {"kind": "rc_jammer"}}]}, "unknown fault 'rc_jammer'"),
+    ({"timeline": [{"fault": {"kind": "sensor_absent", "target": "icm20602"}}]},
+     "target 'icm20602' is not one of"),
+    ({"timeline": [{"fault": {"kind": "gps_jump", "params": {"up_m": 3}}}]},
+     "unknown parameter"),
+    ({"timeline": [{"fault": {"kind": "board_crash", "duration": 2}}]}, "cannot be undone"),
+    ({"timeline": [{"gcs": "arn"}]}, "unknown GCS command 'arn'"),
+    ({"timeline": [{"wait": {"until": "armed"}}]}, "needs 'until' and 'within'"),
+    ({"timeline": [{"clear": "nothing"}]}, "no fault named 'nothing'"),
+    ({"timeline": [{"dance": 1}]}, "unknown key"),
+    ({"expect": [{"sometimes": "armed"}]}, "one of within, eventually, always, never"),
+    ({"expect": [{"within": 1, "of": "nowhere", "that": "armed"}]}, "unknown event 'nowhere'"),
+    ({"expect": [{"never": "warp_drive"}]}, "unknown observable 'warp_drive'"),
+    ({"expect": [{"never": "armed ~ 3"}]}, "unknown operator '~'"),
+    ({"expect": []}, "non-empty list"),
+    ({"rc": "crsf"}, "rc: one of sbus, dsm, ppm"),
+    ({"seed": "one"}, "seed"),
+])
+def test_bad_scenarios_are_rejected_with_a_message_that_says_where(patch, message):
+    data = {**GOOD, **patch}
+    with pytest.raises(ScenarioError, match=message) as err:
+        scenario_from_dict(data, "demo.yaml")
+    assert str(err.value).startswith("demo.yaml: ")
+
+
+def test_malformed_yaml_names_the_file_and_line(tmp_path):
+    p = tmp_path / "bad.yaml"
+    p.write_text("name: x\ntimeline:\n  - wait: [1\n")
+    with pytest.raises(ScenarioError, match=r"bad.yaml: not valid YAML at line \d+"):
+        load_scenario(str(p))
+    with pytest.raises(ScenarioError, match="cannot read"):
+        load_scenario(str(tmp_path / "missing.yaml"))
+
+
+def test_cli_reports_a_bad_file_without_a_traceback(tmp_path, capsys):
+    p = tmp_path / "bad.yaml"
+    p.write_text("timeline: [{fault: {kind: nope}}]\nexpect: [{never: armed}]\n")
+    assert main(["scenario", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown fault 'nope'" in err and "Traceback" not in err
+
+
+def test_cli_lists_the_catalogue(capsys):
+    assert main(["faults"]) == 0
+    out = capsys.readouterr().out
+    assert "sensor_absent  [sensor]" in out and "rc_tx_off  [rc]" in out
+
+
+def _eval(text, values):
+    return parse_condition(text, is_observable)(values.get)
+
+
+@pytest.mark.parametrize("text, values, want", [
+    ("nav_state == Return", {"nav_state": "Return"}, True),
+    ("nav_state == return", {"nav_state": "Return"}, True),
+    ("nav_state != Return", {"nav_state": None}, False),        # missing satisfies nothing
+    ("motor_us == 900 +- 2", {"motor_us": [899.0, 901.5]}, True),
+    ("motor_us == 900 +- 2", {"motor_us": [899.0, 903.0]}, False),
+    ("motor_us between 900 2000", {"motor_us": [950, 1999]}, True),
+    ("motor_us > 1500", {"motor_us": []}, False),
+    ("io.flags contains FAILSAFE", {"io.flags": ["FMU_OK", "FAILSAFE"]}, True),
+    ("not io.flags contains FMU_OK", {"io.flags": ["FAILSAFE"]}, True),
+    ('gcs.text contains "Baro Sensor"', {"gcs.text": ["Preflight Fail: Baro Sensor 0"]}, True),
+    ("nav_state in [Hold, Return]", {"nav_state": "Hold"}, True),
+    ("armed", {"armed": True}, True),
+    ("not armed", {"armed": None}, False),
+    ("imu_healthy[0:2]", {"imu_healthy[0:2]": [True, False]}, False),
+])
+def test_conditions(text, values, want):
+    assert _eval(text, values) is want
+
+
+def test_condition_combinations_and_errors():
+    c = parse_condition({"all": ["armed", {"any": ["rc_lost", "failsafe"]}]}, is_observable)
+    assert c({"armed": True, "rc_lost": False, "failsafe": True}.get)
+    assert not c({"armed": True, "rc_lost": False, "failsafe": False}.get)
+    for bad in ("", "armed >", "alt_agl_m > high", "motor_us between 1", True, {"both": []}):
+        with pytest.raises(ConditionError):
+            parse_condition(bad, is_observable)
