@@ -55,6 +55,13 @@ class Board:
         self.ports: dict[str, PortInfo] = {}
         self._inputs: dict[str, Callable[[int, Any], None]] = {}
         self._outbox: list[Record] = []
+        #: Halted CPU (:meth:`ctl_hang`): None when running, else the records held at the
+        #: chip's boundary until :meth:`ctl_release`.
+        self._hung: list[Record] | None = None
+        self.hung_since_ns: int | None = None
+        #: Input ports whose handlers are pure hardware (a UART's receiver, the physics the
+        #: sensors sample): they keep working while the CPU is halted. Subclasses add theirs.
+        self.hw_inputs: set[str] = set()
 
     # -- exposing ports ------------------------------------------------------------------------
 
@@ -72,6 +79,7 @@ class Board:
     def expose_uart(self, name: str, uart: Any) -> None:
         """Expose a :class:`board.uart.Uart`: its TX bursts leave, bursts arriving feed its RX."""
         self._add_port(name, "uart", "inout")
+        self.hw_inputs.add(name)  # the USART (and its DMA) receives with the CPU halted
         from board.uart import BREAK, UartConfig
 
         uart.attach(_UartOut(self, name))
@@ -151,6 +159,8 @@ class Board:
         had nothing due: the board first catches up to the quantum's start, so a late input is
         applied at the same time as if it had never been skipped.
         """
+        if self._hung is not None:
+            return self._advance_hung(until_ns, inputs, start_ns)
         k = self.kernel
         if start_ns is not None and start_ns > k.now_ns:
             k.run(start_ns)
@@ -162,7 +172,99 @@ class Board:
         return out
 
     def next_event_ns(self) -> int | None:
+        if self._hung is not None:
+            return None  # a halted CPU has nothing due until released
         return self.kernel.peek_ns()
+
+    # -- a halted CPU (fault injection) ----------------------------------------------------------
+
+    def _advance_hung(self, until_ns: int, inputs: list[Record], start_ns: int | None
+                      ) -> list[Record]:
+        """The clock moves, no event runs: firmware, interrupts and timers' callbacks are all
+        stopped. The hardware inputs (UART receivers, physics) still take what arrives; the
+        rest is held and applied when the CPU is released."""
+        k = self.kernel
+        if start_ns is not None and start_ns > k.now_ns:
+            k.now_ns = start_ns
+        hw = self.hw_inputs
+        held = self._hung
+        assert held is not None
+        for rec in inputs:
+            if rec[0] in hw:
+                self.deliver([rec])
+            else:
+                held.append(rec)
+        if until_ns > k.now_ns:
+            k.now_ns = until_ns
+        out = self._outbox  # bursts written before the hang that are still on the wire
+        self._outbox = []
+        return out
+
+    def ctl_hang(self) -> int:
+        """Halt the CPU now (a lock-up with interrupts masked, a hard fault loop): the kernel
+        stops dispatching events, so no firmware, interrupt or callout runs and nothing new is
+        transmitted; pins keep their last level and timers their last PWM, as a halted STM32's
+        peripherals do. The process stays alive (unlike a kill) and :meth:`ctl_release` resumes
+        it. Returns the halt time (ns). Hanging twice is harmless."""
+        if self._hung is None:
+            self._hung = []
+            self.hung_since_ns = self.kernel.now_ns
+        return self.hung_since_ns  # type: ignore[return-value]
+
+    def ctl_release(self) -> int:
+        """Resume a halted CPU now: the interrupts and timer events that fell due meanwhile run
+        first (by priority), then everything continues from the present; held inputs are
+        applied now. Returns the number of overdue events (0 if the board was not halted)."""
+        held = self._hung
+        if held is None:
+            return 0
+        self._hung = None
+        self.hung_since_ns = None
+        k = self.kernel
+        n = k.resume_at(k.now_ns)
+        if held:
+            self.deliver(held)
+        return n
+
+    def ctl_hung(self) -> bool:
+        return self._hung is not None
+
+    # -- UART line faults (fault injection) ------------------------------------------------------
+
+    def uart_named(self, name: str) -> Any:
+        """A UART of this board by its chip name (``USART6``) or its port (``io_link``)."""
+        uarts: dict[str, Any] = getattr(self, "uarts", {})
+        if name in uarts:
+            return uarts[name]
+        for u in uarts.values():
+            link = getattr(u, "link", None)
+            if isinstance(link, _UartOut) and link.port == name:
+                return u
+        raise ValueError(f"board {self.name}: no UART {name!r} (UARTs: "
+                         f"{', '.join(sorted(uarts)) or 'none'})")
+
+    def ctl_uart_fault(self, uart: str, bit_error_rate: float = 0.0, drop_rate: float = 0.0,
+                       seed: int | None = None) -> None:
+        """Noise on a UART's RX line: each bit of every received frame (start, data, parity,
+        stop) flips with ``bit_error_rate``, and each byte is lost with ``drop_rate`` (its start
+        bit never seen). Seeded from the board's seed and the UART's name unless ``seed`` is
+        given. Both rates 0 removes the fault (see board/uart_fault.py)."""
+        from board.uart_fault import LineNoise
+
+        u = self.uart_named(uart)
+        if not bit_error_rate and not drop_rate:
+            LineNoise.remove(u)
+            return
+        LineNoise(u, bit_error_rate, drop_rate,
+                  self.seed if seed is None else seed).install()
+
+    def ctl_uart_fault_stats(self, uart: str) -> dict[str, int]:
+        """Counters of the line fault on ``uart`` (bytes seen, corrupted, dropped, framing and
+        parity errors made); zeros when none is installed."""
+        from board.uart_fault import LineNoise
+
+        noise = LineNoise.installed(self.uart_named(uart))
+        return noise.stats() if noise is not None else {}
 
     def call(self, method: str, *args: Any) -> Any:
         """Run a named control method (``ctl_<method>``) of this board: shell commands, fault

@@ -166,6 +166,7 @@ class FmuV2Board(Board):
                 self.expose_uart(u.port, self.uarts[u.name])
         self.expose_input("truth", self._on_truth)
         self.expose_input("power", self._on_power)
+        self.hw_inputs |= {"truth", "power"}  # physics at the sensors, dividers at the ADC
         self._emit_reboot = self.expose_output("reboot")
         self.udp_out = self.expose_output("udp_out")
         self.udp_handlers: dict[int, Any] = {}
