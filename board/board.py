@@ -229,6 +229,38 @@ class Board:
     def ctl_hung(self) -> bool:
         return self._hung is not None
 
+    # -- bus faults (fault injection) ------------------------------------------------------------
+
+    def _bus(self, kind: str, name: str) -> Any:
+        buses: dict[str, Any] = getattr(self, kind, {})
+        if name not in buses:
+            raise ValueError(f"board {self.name}: no {kind.upper()} bus {name!r} (buses: "
+                             f"{', '.join(sorted(buses)) or 'none'})")
+        return buses[name]
+
+    def ctl_spi_miso_stuck(self, bus: str, level: int | None) -> None:
+        """Short an SPI bus's MISO high (1), low (0), or heal it (None): see
+        :meth:`board.spi.SpiBus.set_miso_stuck`."""
+        self._bus("spi", bus).set_miso_stuck(level)
+
+    def ctl_i2c_fault(self, bus: str, nak_rate: float = 0.0, sda_stuck: bool = False) -> None:
+        """A NAK storm (``nak_rate`` of the transactions NAKed, seeded) or SDA held low on an
+        I2C bus; both off heals it (see :class:`board.i2c.I2cFault`)."""
+        from board.i2c import I2cFault
+
+        b = self._bus("i2c", bus)
+        if not nak_rate and not sda_stuck:
+            b.set_fault(None)
+            return
+        b.set_fault(I2cFault(nak_rate, sda_stuck, seed=self.seed, name=f"{self.name}.{bus}"))
+
+    def ctl_bus_stats(self, kind: str, bus: str) -> dict[str, int]:
+        """Counters of one bus (``kind`` "spi" or "i2c")."""
+        b = self._bus(kind, bus)
+        keys = ("transfers", "bytes") if kind == "spi" else \
+            ("transactions", "nak_count", "addr_nak_count", "data_nak_count", "timeouts")
+        return {k: getattr(b, k) for k in keys}
+
     # -- UART line faults (fault injection) ------------------------------------------------------
 
     def uart_named(self, name: str) -> Any:

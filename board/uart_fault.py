@@ -137,6 +137,9 @@ class LineNoise:
                 masks[i] = masks.get(i, 0) ^ (1 << db)   # the parity bit itself
             elif bit == db + 1 + has_parity:
                 flags[i] = flags.get(i, 0) | FE  # first stop bit (later ones are not checked)
+        for i in lost:          # a lost frame is neither corrupted nor flagged
+            masks.pop(i, None)
+            flags.pop(i, None)
         out = bytearray(data)
         dmask = (1 << db) - 1
         for i, m in masks.items():

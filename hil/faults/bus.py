@@ -104,3 +104,62 @@ def uart_noise(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
 def _uart_noise_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                      token: Any) -> None:
     board_call(rig, "bus.uart_noise", token[0], "uart_fault", token[1], 0.0, 0.0)
+
+
+@fault_kind("bus.spi_miso_stuck", level="bus", level_high=1,
+            doc="An SPI bus's MISO line is stuck (target 'board.SPIn', e.g. 'fmu.SPI1' with "
+                "the MPU6000, L3GD20, LSM303D and MS5611): level_high=1 reads 0xFF from every "
+                "device (a cracked trace floating to the pull-up, a chip that no longer "
+                "drives), 0 reads 0x00 (a short to ground). The devices still receive MOSI. "
+                "Each driver sees impossible registers (WHO_AM_I 0xFF, an all-ones FIFO "
+                "count), counts bad transfers in error_count and resets its chip, retrying "
+                "until the bus heals; the sensors module's voter drops the silent sensors.")
+def spi_miso_stuck(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.spi_miso_stuck"
+    board, bus = _split(target, name, "SPIn")
+    level = int(number(params, "level_high", name, 0, 1))
+    board_call(rig, name, board, "spi_miso_stuck", bus, level)
+    return (board, bus)
+
+
+@spi_miso_stuck.stopper
+def _spi_miso_stuck_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                         token: Any) -> None:
+    board_call(rig, "bus.spi_miso_stuck", token[0], "spi_miso_stuck", token[1], None)
+
+
+@fault_kind("bus.i2c_nak_storm", level="bus", nak_rate=1.0,
+            doc="A fraction nak_rate of the transactions on an I2C bus (target 'board.I2Cn', "
+                "e.g. 'fmu.I2C1' with the GPS module's HMC5883L) is not acknowledged: a "
+                "marginal pull-up, EMI on the GPS cable, a device browning out. The driver "
+                "gets -EIO, counts a bad transfer and retries at its next cycle; with 1.0 the "
+                "magnetometer goes silent and the sensors module's voter fails over.")
+def i2c_nak_storm(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.i2c_nak_storm"
+    board, bus = _split(target, name, "I2Cn")
+    rate = number(params, "nak_rate", name, 0.0, 1.0)
+    if rate == 0:
+        raise FaultError(f"fault {name}: nak_rate must be above 0")
+    board_call(rig, name, board, "i2c_fault", bus, rate, False)
+    return (board, bus)
+
+
+@fault_kind("bus.i2c_sda_stuck", level="bus",
+            doc="SDA of an I2C bus is held low (a device reset in the middle of a byte keeps "
+                "driving it; a short): the controller cannot make a START, so every "
+                "transaction fails with -ETIMEDOUT after a 1 ms wait for the bus, until the "
+                "fault is cleared. Every driver on that bus stops publishing and counts "
+                "errors.")
+def i2c_sda_stuck(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.i2c_sda_stuck"
+    board, bus = _split(target, name, "I2Cn")
+    board_call(rig, name, board, "i2c_fault", bus, 0.0, True)
+    return (board, bus)
+
+
+def _i2c_heal(rig: Rig, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
+    board_call(rig, "bus.i2c", token[0], "i2c_fault", token[1], 0.0, False)
+
+
+i2c_nak_storm.stopper(_i2c_heal)  # type: ignore[attr-defined]
+i2c_sda_stuck.stopper(_i2c_heal)  # type: ignore[attr-defined]
