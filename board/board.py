@@ -55,6 +55,8 @@ class Board:
         self.ports: dict[str, PortInfo] = {}
         self._inputs: dict[str, Callable[[int, Any], None]] = {}
         self._outbox: list[Record] = []
+        #: the present level of each pin and PWM output (what a mended wire carries again)
+        self.port_levels: dict[str, Any] = {}
         #: Halted CPU (:meth:`ctl_hang`): None when running, else the records held at the
         #: chip's boundary until :meth:`ctl_release`.
         self._hung: list[Record] | None = None
@@ -99,7 +101,13 @@ class Board:
     def expose_pin_out(self, name: str, pin: Any) -> None:
         """Expose a pin this chip drives; its level changes leave as records."""
         self._add_port(name, "pin", "out")
-        pin.on_change(lambda _pin, t_ns, level: self.emit(name, t_ns, level))
+        levels = self.port_levels
+
+        def changed(_pin: Any, t_ns: int, level: int) -> None:
+            levels[name] = level
+            self.emit(name, t_ns, level)
+
+        pin.on_change(changed)
 
     def expose_pin_in(self, name: str, pin: Any) -> None:
         """Expose a pin driven from outside (a switch, another chip's output)."""
@@ -118,7 +126,13 @@ class Board:
     def expose_pwm(self, name: str, channel: Any) -> None:
         """Expose a timer channel's PWM output (pulse width and period as they change)."""
         self._add_port(name, "pwm", "out")
-        channel.on_pwm(lambda t_ns, high_ns, period_ns: self.emit(name, t_ns, (high_ns, period_ns)))
+        levels = self.port_levels
+
+        def changed(t_ns: int, high_ns: int, period_ns: int) -> None:
+            levels[name] = (high_ns, period_ns)
+            self.emit(name, t_ns, (high_ns, period_ns))
+
+        channel.on_pwm(changed)
 
     def expose_input(self, name: str, handler: Callable[[int, Any], None], kind: str = "value"
                      ) -> None:
@@ -129,6 +143,14 @@ class Board:
     def expose_output(self, name: str, kind: str = "value") -> Callable[[int, Any], None]:
         """Expose a generic output; returns the function that emits on it."""
         self._add_port(name, kind, "out")
+        if kind in ("pwm", "pin"):
+            levels = self.port_levels
+
+            def emit_level(t_ns: int, payload: Any) -> None:
+                levels[name] = payload
+                self.emit(name, t_ns, payload)
+
+            return emit_level
         return lambda t_ns, payload: self.emit(name, t_ns, payload)
 
     # -- lockstep ------------------------------------------------------------------------------
@@ -189,9 +211,12 @@ class Board:
         hw = self.hw_inputs
         held = self._hung
         assert held is not None
+        inputs_by_port = self._inputs
         for rec in inputs:
             if rec[0] in hw:
-                self.deliver([rec])
+                # applied at once with its stamp: a UART works out arrival times itself, and
+                # no kernel event would run to apply it later
+                inputs_by_port[rec[0]](rec[1], rec[2])
             else:
                 held.append(rec)
         if until_ns > k.now_ns:
@@ -308,6 +333,10 @@ class Board:
 
     def ctl_time_ns(self) -> int:
         return self.kernel.now_ns
+
+    def ctl_port_level(self, port: str) -> Any:
+        """The present level of a pin or PWM output port (None if it never changed)."""
+        return self.port_levels.get(port)
 
     def ctl_ports(self) -> list[tuple[str, str, str]]:
         return [(p.name, p.kind, p.direction) for p in self.ports.values()]

@@ -400,8 +400,13 @@ class Orchestrator:
         key = self._wire(board, port)
         fault = self._wire_faults.get(key)
         self.set_wire_fault(board, port, None)
-        if fault is not None and fault.last is not None and fault.kind in ("pwm", "pin"):
-            self._route(board, port, self.t_ns, fault.last[2])
+        if fault is None or fault.kind not in ("pwm", "pin"):
+            return
+        level = fault.last[2] if fault.last is not None else None
+        if level is None and board != WORLD and board not in self.dead:
+            level = self.call(board, "port_level", port)
+        if level is not None:
+            self._route(board, port, self.t_ns, level)
 
     def wire_faults(self) -> list[str]:
         return [f"{b}.{p}" for b, p in self._wire_faults]
