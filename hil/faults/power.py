@@ -60,3 +60,64 @@ def servo_rail_brownout(rig: Rig, target: str, params: dict[str, Any], t_ns: int
 def _servo_rail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                      token: Any) -> None:
     board_call(rig, "board.servo_rail_brownout", "io", "set_servo_rail_v", 5.0)
+
+
+@fault_kind("board.fram_write_fail", level="board",
+            doc="The FMU's FRAM (FM25V01 on SPI2) stops taking writes: its write-enable latch "
+                "never sets after WREN (a failed charge pump, a chip at the end of its life). "
+                "The FRAM driver checks WEL after each WREN and reports 'write enable latch "
+                "did not set'; a parameter save fails and says so ('write to parameter slot n "
+                "failed'); the other slot still holds the last good save, so nothing already "
+                "saved is lost and the next boot loads it.")
+def fram_write_fail(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", True)
+    return None
+
+
+@fram_write_fail.stopper
+def _fram_write_fail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                          token: Any) -> None:
+    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", False)
+
+
+@fault_kind("board.cpu_overload", level="board", fraction=0.8, period_us=1000,
+            doc="A work item on a PX4 work queue of the FMU (target the queue, e.g. "
+                "'wq:SPI1', 'wq:rate_ctrl', 'wq:INS0') burns `fraction` of every period_us "
+                "of CPU time: a runaway module or a driver spinning. The queue's other items "
+                "start late by up to that much: sensor samples reach the estimator older, the "
+                "rate controller runs late, visible in the perf counters and in the "
+                "timestamp - timestamp_sample of what the queue publishes.")
+def cpu_overload(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "board.cpu_overload"
+    frac = number(params, "fraction", name, 0.0, 0.99)
+    period = int(number(params, "period_us", name, 100, 1_000_000))
+    board_call(rig, name, "fmu", "cpu_load", target, frac, period)
+    return None
+
+
+@cpu_overload.stopper
+def _cpu_overload_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                       token: Any) -> None:
+    board_call(rig, "board.cpu_overload", "fmu", "cpu_load", target, 0.0)
+
+
+@fault_kind("sensor.bias_drift", level="sensor", rate=(0.01, 0.0, 0.0),
+            doc="A sensor's bias drifts at `rate` SI units per second per axis (target the FMU "
+                "device: mpu6000 gyro rad/s/s, l3gd20, lsm303d accel m/s^2/s, hmc5883 gauss/s, "
+                "ms5611 Pa/s on the first axis): a temperature-driven or aging drift, a part "
+                "slowly magnetised. The chip's output ramps (updated every 10 ms); the "
+                "estimator's bias states follow a slow drift, a fast one shows as growing "
+                "innovations and, between redundant sensors, as inconsistency in the voter. "
+                "Stopping leaves the bias where it got to.")
+def bias_drift(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    from hil.faults._rig import vector
+
+    rate = vector(params, "rate", "sensor.bias_drift")
+    board_call(rig, "sensor.bias_drift", "fmu", "sensor_drift", target, rate)
+    return None
+
+
+@bias_drift.stopper
+def _bias_drift_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                     token: Any) -> None:
+    board_call(rig, "sensor.bias_drift", "fmu", "sensor_drift", target, (0.0, 0.0, 0.0))
