@@ -166,6 +166,7 @@ class FmuV2Board(Board):
                 self.expose_uart(u.port, self.uarts[u.name])
         self.expose_input("truth", self._on_truth)
         self.expose_input("power", self._on_power)
+        self.hw_inputs |= {"truth", "power"}  # physics at the sensors, dividers at the ADC
         self._emit_reboot = self.expose_output("reboot")
         self.udp_out = self.expose_output("udp_out")
         self.udp_handlers: dict[int, Any] = {}
@@ -331,6 +332,68 @@ class FmuV2Board(Board):
             d["port"] = getattr(inst.transport, "local_port", None) or inst.transport.device
             out.append(d)
         return out
+
+    # -- fault hooks of the FMU's chips and CPU (docs/fault_hooks.md) -------------------------
+
+    def ctl_sensor_drift(self, device: str, rate: tuple[float, float, float],
+                         period_ms: int = 10) -> None:
+        """Ramp a device's bias (``faults.bias_step``) by ``rate`` SI units per second from now,
+        updated every ``period_ms`` by a hardware-priority event (a temperature-driven or aging
+        drift, a slowly magnetised part); a zero rate stops the ramp where it is."""
+        from board.kernel import PRIO_HW
+
+        model = self.devices.get(device)
+        if model is None or not hasattr(model, "faults"):
+            raise ValueError(f"FMU: no device {device!r} (devices: "
+                             f"{', '.join(sorted(self.devices))})")
+        rx, ry, rz = (float(v) for v in rate)
+        if type(period_ms) is not int or period_ms <= 0:
+            raise ValueError(f"FMU: drift update period must be a positive int ms, got "
+                             f"{period_ms!r}")
+        drifts = self.__dict__.setdefault("_drifts", {})
+        old = drifts.pop(device, None)
+        if old is not None:
+            old.cancel()
+        if rx == ry == rz == 0.0:
+            return
+        k = self.kernel
+        faults = model.faults
+        base = tuple(faults.bias_step)
+        t0 = k.now_ns
+
+        def step() -> None:
+            dt = (k.now_ns - t0) * 1e-9
+            faults.bias_step = (base[0] + rx * dt, base[1] + ry * dt, base[2] + rz * dt)
+
+        drifts[device] = k.call_every(period_ms * 1_000_000, step, priority=PRIO_HW)
+
+    def ctl_cpu_load(self, wq: str, fraction: float, period_us: int = 1000) -> None:
+        """A greedy work item on work queue ``wq`` that burns ``fraction`` of every
+        ``period_us`` of CPU time (a runaway module, a busy loop in a driver): the queue's other
+        items start late by up to that much. Fraction 0 removes it."""
+        from firmware.platform.workqueue import WQ_CONFIGS, WorkItem
+
+        if wq not in WQ_CONFIGS:
+            raise ValueError(f"FMU: no work queue {wq!r} (queues: {', '.join(WQ_CONFIGS)})")
+        if not 0.0 <= fraction < 1.0 or type(period_us) is not int or period_us <= 0:
+            raise ValueError(f"FMU: CPU load needs 0 <= fraction < 1 and a positive int "
+                             f"period_us, got {fraction!r}, {period_us!r}")
+        hogs = self.__dict__.setdefault("_cpu_hogs", {})
+        old = hogs.pop(wq, None)
+        if old is not None:
+            old.schedule_clear()
+        if fraction == 0.0:
+            return
+
+        class _Hog(WorkItem):
+            def run(self) -> None:
+                self.runs += 1
+
+        hog = _Hog(self.platform, "cpu_hog", wq)
+        hog.runs = 0
+        hog.cpu_cost_ns = round(fraction * period_us * 1000)
+        hog.schedule_on_interval(period_us)
+        hogs[wq] = hog
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)

@@ -36,12 +36,53 @@ from collections.abc import Sequence
 
 from board.kernel import Kernel
 
-__all__ = ["SMBUS_BLOCK_MAX", "I2cBus", "I2cHandle", "I2cTarget"]
+__all__ = ["SMBUS_BLOCK_MAX", "I2cBus", "I2cFault", "I2cHandle", "I2cTarget"]
 
 #: smbus2 / Linux I2C_SMBUS_BLOCK_MAX: longest block an SMBus block call may move.
 SMBUS_BLOCK_MAX = 32
 
 _EIO = -errno.EIO
+_ETIMEDOUT = -errno.ETIMEDOUT
+
+
+class I2cFault:
+    """A fault on an I2C bus's wires, consulted before each transaction.
+
+    * ``nak_rate``: the fraction of transactions whose address byte is not acknowledged
+      (a device browning out, EMI on SCL, a marginal pull-up); 1.0 NAKs everything. Drawn from
+      a seeded generator. A NAKed transaction takes its real 11 clocks.
+    * ``sda_stuck``: SDA held low (a device reset mid-byte keeps driving it, a short to
+      ground): the controller cannot make a START; every transaction fails with
+      ``-ETIMEDOUT`` after the controller's ``timeout_ns`` wait for the bus (the STM32's BUSY
+      flag never clears), until the fault is removed.
+    """
+
+    def __init__(self, nak_rate: float = 0.0, sda_stuck: bool = False, seed: int = 0,
+                 name: str = "i2c", timeout_ns: int = 1_000_000) -> None:
+        import random
+
+        if not 0.0 <= nak_rate <= 1.0:
+            raise ValueError(f"I2C {name}: nak_rate must be in [0, 1], got {nak_rate!r}")
+        self.nak_rate = float(nak_rate)
+        self.sda_stuck = bool(sda_stuck)
+        self.timeout_ns = int(timeout_ns)
+        self._rng = random.Random(f"{seed}:{name}:i2c-fault")
+        self.naks = 0
+        self.timeouts = 0
+
+    def intercept(self, bus: I2cBus, addr: int) -> tuple[int, bytes] | None:
+        """None: the transaction runs normally; else its (failed) result."""
+        if self.sda_stuck:
+            self.timeouts += 1
+            bus.timeouts += 1
+            bus.kernel.busy_ns += self.timeout_ns
+            return _ETIMEDOUT, b""
+        if self.nak_rate and (self.nak_rate >= 1.0 or self._rng.random() < self.nak_rate):
+            self.naks += 1
+            bus._nak(address=True)
+            bus.kernel.busy_ns += bus.duration_ns(1 + 9 + 1)
+            return _EIO, b""
+        return None
 
 
 class I2cTarget:
@@ -121,6 +162,13 @@ class I2cBus:
         self.nak_count = 0
         self.addr_nak_count = 0
         self.data_nak_count = 0
+        #: fault injection (see :meth:`set_fault`); None on a healthy bus
+        self.fault: I2cFault | None = None
+        self.timeouts = 0
+
+    def set_fault(self, fault: I2cFault | None) -> None:
+        """Put a fault on the wires (a NAK storm, SDA held low), or None to heal them."""
+        self.fault = fault
 
     # -- wiring ---------------------------------------------------------------------------------
 
@@ -185,6 +233,10 @@ class I2cBus:
         hz = self.clock_hz
         target = self._targets.get(addr)
         self.transactions += 1
+        if self.fault is not None:
+            failed = self.fault.intercept(self, addr)
+            if failed is not None:
+                return failed
         status = 0
         data = b""
         clocks = 0  # SCL clocks before the current bus phase
@@ -225,6 +277,9 @@ class I2cBus:
     def _checked(self, addr: int, write: bytes, read_len: int, where: str) -> bytes:
         status, data = self.transfer(addr, write, read_len)
         if status:
+            if status == _ETIMEDOUT:
+                raise OSError(errno.ETIMEDOUT, f"I2C {self.name}: {where} at address "
+                                               f"0x{addr:02x}: bus busy, START timed out")
             raise OSError(errno.EIO, f"I2C {self.name}: {where} at address 0x{addr:02x}: "
                                      f"no ACK ({errno.errorcode[errno.EIO]})")
         return data

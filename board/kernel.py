@@ -201,6 +201,25 @@ class Kernel:
 
     # -- running ------------------------------------------------------------------------------
 
+    def resume_at(self, t_ns: int) -> int:
+        """A halted CPU resumes at ``t_ns``: every event that fell due while it was halted
+        becomes due at ``t_ns`` (pending interrupts are served as soon as it runs again, by
+        priority), and periodic calls restart their cadence from ``t_ns``. Returns how many
+        events were overdue. See :meth:`board.board.Board.ctl_hang`."""
+        q = self._queue
+        n = 0
+        for e in q:
+            if e[0] < t_ns and e[3] is not None:
+                e[0] = t_ns
+                n += 1
+                owner = getattr(e[3], "__self__", None)
+                if isinstance(owner, Periodic):
+                    owner.next_ns = t_ns
+        heapq.heapify(q)
+        if t_ns > self.now_ns:
+            self.now_ns = t_ns
+        return n
+
     def peek_ns(self) -> int | None:
         """Time of the next live event, or None if nothing is scheduled."""
         q = self._queue

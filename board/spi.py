@@ -164,6 +164,19 @@ class SpiBus:
         #: Transfers (or transaction segments) clocked so far, and bytes moved.
         self.transfers = 0
         self.bytes = 0
+        #: MISO shorted (fault injection): every byte any device sends reads this value
+        #: (b"\xff" stuck high, b"\x00" stuck low); None for a healthy line. The devices
+        #: still receive MOSI.
+        self.miso_stuck: bytes | None = None
+
+    def set_miso_stuck(self, level: int | None) -> None:
+        """Short MISO to VDD (``1``: every byte reads 0xFF) or to ground (``0``: 0x00), or
+        heal it (None): a solder bridge, a chip that latched up driving its output, a cracked
+        trace floating high through the pull-up."""
+        if level not in (None, 0, 1):
+            raise ValueError(f"SPI bus {self.name}: MISO stuck level must be 0, 1 or None, "
+                             f"got {level!r}")
+        self.miso_stuck = None if level is None else (b"\xff" if level else b"\x00")
 
     def _line(self, cs_name: str, where: str) -> _Cs:
         line = self._cs.get(cs_name)
@@ -280,7 +293,7 @@ class SpiHandle:
         bus.bytes += n
         target = self._line.target
         if target is None:
-            return b"\xff" * n
+            return b"\xff" * n if bus.miso_stuck is None else bus.miso_stuck * n
         clock = self.clock_hz
         if _PLAIN_TARGETS.get(type(target)) or _plain_target(type(target)):
             # SpiTarget.select/exchange/deselect inlined for a target that keeps them (all
@@ -303,6 +316,8 @@ class SpiHandle:
             target.deselect(t + dur)
         if len(rx) != n:
             self._bad_reply(target, n, rx)
+        if bus.miso_stuck is not None:
+            return bus.miso_stuck * n
         return bytes(rx) if type(rx) is not bytes else rx
 
     def write_readinto(self, tx: bytes, rx_buf: bytearray | memoryview) -> None:
@@ -367,10 +382,12 @@ class SpiHandle:
         bus.bytes += n
         target = self._line.target
         if target is None:
-            return b"\xff" * n
+            return b"\xff" * n if bus.miso_stuck is None else bus.miso_stuck * n
         rx = target.exchange(t, tx)
         if len(rx) != n:
             self._bad_reply(target, n, rx)
+        if bus.miso_stuck is not None:
+            return bus.miso_stuck * n
         return bytes(rx) if type(rx) is not bytes else rx
 
     def deselect(self) -> None:

@@ -82,6 +82,15 @@ class GcsClient:
         self.param_order: list[str] = []
         self._shell_open = False
         self._shell_cursor = 0
+        #: ground-link faults (hil/faults/link.py): the radio carries nothing up (to the
+        #: vehicle) / down (to the GCS); what was lost is counted
+        self.uplink_lost = False
+        self.downlink_lost = False
+        self.lost_up = 0
+        self.lost_down = 0
+        #: a flood of traffic to the vehicle: (period_ns, next_ns, message factory) or None
+        self._flood: tuple[int, int, Callable[[], Any]] | None = None
+        self.flood_sent = 0
         if signing_key is not None:
             self.set_signing_key(signing_key)
 
@@ -93,6 +102,8 @@ class GcsClient:
         return self
 
     def run_until(self, t_ns: int) -> None:
+        if self._flood is not None:
+            self._run_flood(t_ns)
         if self.heartbeat_interval_ns:
             while self._next_hb_ns <= t_ns:
                 self.send(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_GCS,
@@ -104,9 +115,15 @@ class GcsClient:
 
     def outputs(self, until_ns: int) -> list:
         out, self._out = self._out, []
+        if self.uplink_lost:
+            self.lost_up += len(out)
+            return []
         return out
 
     def input(self, port: str, t_ns: int, payload: Any) -> None:
+        if self.downlink_lost:
+            self.lost_down += 1
+            return
         if self.link == "udp":
             fmu_port, _remote, data = payload
             if fmu_port != self.fmu_port:
@@ -128,6 +145,65 @@ class GcsClient:
             cut = len(self.log) - 25_000
             del self.log[:cut]
             self._base += cut
+
+    # -- ground-link faults ---------------------------------------------------------------------
+
+    def set_link_loss(self, up: bool, down: bool) -> None:
+        """The telemetry link stops carrying traffic to the vehicle (``up``) and/or from it
+        (``down``): a radio out of range, a modem unplugged. The GCS keeps running and keeps
+        trying (its heartbeats are lost, not withheld)."""
+        self.uplink_lost = bool(up)
+        self.downlink_lost = bool(down)
+
+    def flood(self, rate_hz: float, kind: str = "heartbeat", size: int = 0) -> None:
+        """Send ``rate_hz`` extra messages per virtual second to the vehicle until
+        ``flood(0)``: ``"heartbeat"`` (valid, from a second GCS id), ``"param_request_list"``
+        (each one asks for the whole parameter set), ``"statustext"`` (valid, for a message the
+        vehicle ignores) or ``"garbage"`` (``size`` random-looking bytes that are not MAVLink;
+        deterministic). A UDP datagram carries one message, as MAVLink senders do."""
+        if rate_hz < 0 or rate_hz > 1_000_000:
+            raise ValueError(f"flood rate must be in [0, 1e6] Hz, got {rate_hz!r}")
+        if rate_hz == 0:
+            self._flood = None
+            return
+        flooder = mav.MAVLink(_Sink(), 254, 190)
+        tgt = (self.target_system, self.target_component)
+        counter = [0]
+
+        def garbage() -> bytes:
+            counter[0] += 1
+            n = size or 64
+            x = counter[0] * 2654435761 & 0xFFFFFFFF
+            out = bytearray()
+            while len(out) < n:
+                x = (1103515245 * x + 12345) & 0x7FFFFFFF
+                b = (x >> 16) & 0xFF
+                out.append(b if b not in (0xFD, 0xFE) else 0x55)  # never a MAVLink start
+            return bytes(out)
+
+        factories: dict[str, Callable[[], Any]] = {
+            "heartbeat": lambda: mav.MAVLink_heartbeat_message(
+                mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE,
+                3).pack(flooder),
+            "param_request_list": lambda: mav.MAVLink_param_request_list_message(
+                *tgt).pack(flooder),
+            "statustext": lambda: mav.MAVLink_statustext_message(
+                mav.MAV_SEVERITY_INFO, b"flood" + bytes(45)).pack(flooder),
+            "garbage": garbage,
+        }
+        if kind not in factories:
+            raise ValueError(f"flood kind must be one of {', '.join(factories)}, got {kind!r}")
+        period = max(1, int(NS_PER_S / rate_hz))
+        self._flood = (period, self._t_ns, factories[kind])
+
+    def _run_flood(self, t_ns: int) -> None:
+        assert self._flood is not None
+        period, nxt, make = self._flood
+        while nxt <= t_ns:
+            self.send_bytes(make(), t_ns=nxt)
+            self.flood_sent += 1
+            nxt += period
+        self._flood = (period, nxt, make)
 
     # -- sending --------------------------------------------------------------------------------
 

@@ -2,7 +2,8 @@
 
 Faults act where they happen on a real board: the chip answers a wrong ID, its data freezes or
 turns to noise, it drops off the bus (an SPI chip that no longer drives MISO reads 0xFF; an I2C
-chip stops ACKing), it stops raising data-ready, it saturates, or its output gains a bias step.
+chip stops ACKing), it stops raising data-ready, it saturates, or its output gains a bias step (the FMU board ramps
+it for a drift, ``FmuV2Board.ctl_sensor_drift``), or a memory stops taking writes.
 The driver must notice what a PX4 driver would notice; the model never tells it.
 """
 
@@ -22,6 +23,7 @@ class FaultState:
     drdy_stuck: bool = False        # data-ready line never asserts
     saturate: bool = False          # every axis reads its positive full scale
     bias_step: tuple[float, float, float] = (0.0, 0.0, 0.0)  # added in SI units
+    write_fail: bool = False        # a memory's write enable never latches (FRAM: WREN ignored)
 
     def clear(self) -> None:
         self.__init__()  # type: ignore[misc]

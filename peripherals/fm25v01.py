@@ -251,7 +251,8 @@ class Fm25v01(SpiTarget):
 
     def _opcode(self, op: int) -> None:
         if op == OP_WREN:
-            self.status |= SR_WEL
+            if not self.faults.write_fail:  # a failed write-enable circuit: WEL never sets
+                self.status |= SR_WEL
         elif op == OP_WRDI:
             self.status &= ~SR_WEL
         elif op == OP_SLEEP:

@@ -58,12 +58,14 @@ class Battery:
     """Pack state. Call ``step(current_a)`` once per world step (dt fixed at construction)."""
 
     __slots__ = ("params", "voltage_v", "current_a", "used_mah", "soc", "v1_v", "_alpha1",
-                 "_alpha_dt", "_cells")
+                 "_alpha_dt", "_cells", "r0_ohm")
 
     def __init__(self, params: BatteryParams | None = None, dt_s: float = 0.001) -> None:
         p = params or BatteryParams()
         self.params = p
         self._cells = p.cells
+        #: ohmic resistance now (a fault raises it: a damaged cell, a loose connector)
+        self.r0_ohm = p.r0_ohm
         self.used_mah = 0.0
         self.soc = p.soc0
         self.v1_v = 0.0
@@ -71,6 +73,21 @@ class Battery:
         self._alpha_dt = dt_s
         self._alpha1 = 1.0 - math.exp(-dt_s / p.tau1_s) if p.tau1_s > 0 else 1.0
         self.voltage_v = self._cells * lipo_cell_ocv_v(self.soc) - self.current_a * p.r0_ohm
+
+    def force_soc(self, soc: float) -> None:
+        """Make the pack hold ``soc`` of its charge now (a pack that was not charged, a cell
+        that lost its capacity); it keeps discharging from there. The voltage follows at the
+        next step."""
+        if not 0.0 <= soc <= 1.0:
+            raise ValueError(f"battery state of charge must be in [0, 1], got {soc!r}")
+        self.used_mah = (self.params.soc0 - soc) * self.params.capacity_mah
+        self.soc = soc
+
+    def set_r0(self, r0_ohm: float) -> None:
+        """Ohmic resistance from now on (``params.r0_ohm`` is the healthy pack's)."""
+        if not 0.0 <= r0_ohm <= 10.0:
+            raise ValueError(f"battery resistance must be in [0, 10] ohm, got {r0_ohm!r}")
+        self.r0_ohm = r0_ohm
 
     @property
     def ocv_v(self) -> float:
@@ -86,6 +103,6 @@ class Battery:
         v1 = self.v1_v
         v1 += (current_a * p.r1_ohm - v1) * self._alpha1
         self.v1_v = v1
-        v = self._cells * lipo_cell_ocv_v(soc) - current_a * p.r0_ohm - v1
+        v = self._cells * lipo_cell_ocv_v(soc) - current_a * self.r0_ohm - v1
         self.voltage_v = v if v > 0.0 else 0.0
         return self.voltage_v

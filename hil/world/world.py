@@ -34,6 +34,9 @@ __all__ = ["World", "PX4_HOME"]
 PX4_HOME = (47.397742, 8.545594, 488.0)  # lat deg, lon deg, ground altitude m AMSL
 
 N_PWM_CHANNELS = 8
+#: current of a motor spinning without its propeller at full throttle (the E305's no-load
+#: current at 11 V is about 0.5 A; a larger figure covers the ESC's own losses)
+NOLOAD_CURRENT_A = 0.7
 DEFAULT_PWM_PERIOD_NS = 2_500_000  # 400 Hz, PX4's default multicopter PWM rate
 
 # WGS-84
@@ -116,6 +119,14 @@ class World:
         self._truth_getters = self.fdm.truth_getters
         self._truth_cache: Truth | None = None
         self._truth_step = -1
+        #: faults in the physics (hil/faults/vehicle.py): motor -> (kind, thrust fraction)
+        self.motor_faults: dict[int, tuple[str, float]] = {}
+        self._freewheel_a = [0.0] * af.n_motors
+        self._extra_a = 0.0
+        #: magnetic disturbance at the vehicle: (constant body field, body field per amp of
+        #: battery current), gauss; None when there is none
+        self.mag_disturbance: tuple[tuple[float, float, float], tuple[float, float, float]] \
+            | None = None
 
     # -- inputs ---------------------------------------------------------------------------
     def set_pwm(self, ch: int, t_ns: int, high_ns: int, period_ns: int) -> None:
@@ -173,7 +184,7 @@ class World:
                 if im > 0.0:
                     p += jsb[i] * im
             v = battery.voltage_v
-            bstep(i_avionics + (p * k_power / v if v > 0.5 else 0.0))
+            bstep(i_avionics + self._extra_a + (p * k_power / v if v > 0.5 else 0.0))
             self.t_ns = t + dt_ns
             self.steps += 1
 
@@ -213,6 +224,10 @@ class World:
             2.0 * (xy - wz) * mn + (ww - xx + yy - zz) * me + 2.0 * (yz + wx) * md,
             2.0 * (xz + wy) * mn + 2.0 * (yz - wx) * me + (ww - xx - yy + zz) * md,
         )
+        if self.mag_disturbance is not None:
+            (cx, cy, cz), (kx, ky, kz) = self.mag_disturbance
+            amps = self.battery.current_a
+            mag = (mag[0] + cx + kx * amps, mag[1] + cy + ky * amps, mag[2] + cz + kz * amps)
         tr = Truth(
             self.t_ns,
             (ax * FT, ay * FT, az * FT),
@@ -240,6 +255,117 @@ class World:
         self._truth_cache = tr
         self._truth_step = self.steps
         return tr
+
+    # -- faults in the physics (hil/faults/vehicle.py) ----------------------------------------
+
+    def _motor_index(self, i: int) -> int:
+        n = self.airframe.n_motors
+        if type(i) is not int or not 0 <= i < n:
+            raise ValueError(f"motor index must be 0..{n - 1} (PX4 order), got {i!r}")
+        return i
+
+    def fail_motor(self, i: int, kind: str = "motor", thrust_fraction: float = 0.0) -> None:
+        """Motor ``i`` (0-based, PX4 quad-X order) fails from the next step, whatever its ESC
+        is told:
+
+        * ``"motor"``: the motor (or its ESC's power stage) stops driving: no torque, no current;
+          ``thrust_fraction`` > 0 leaves a weak motor instead (a burnt winding, a slipping
+          propeller): the drive is scaled so that thrust is about that fraction (thrust goes
+          with the square of the drive, so the drive is scaled by its square root);
+        * ``"propeller"``: the propeller comes off: no thrust and no rotor torque, and the
+          motor spins free, drawing only its no-load current (:data:`NOLOAD_CURRENT_A` at full
+          throttle, in proportion below).
+
+        The ESC keeps running its own logic (arming, signal timeout). In JSBSim the rotor is
+        unpowered, so its thrust decays with the rotor's spin-down (~50 ms) rather than in
+        one step.
+        """
+        i = self._motor_index(i)
+        if kind not in ("motor", "propeller"):
+            raise ValueError(f"motor failure kind must be 'motor' or 'propeller', got {kind!r}")
+        if not 0.0 <= thrust_fraction < 1.0:
+            raise ValueError(f"thrust_fraction must be in [0, 1), got {thrust_fraction!r}")
+        esc_update = self.escs[i].update
+        updates = list(self._esc_updates)
+        if kind == "propeller":
+            free = self._freewheel_a
+
+            def update(t_ns: int) -> float:
+                free[i] = NOLOAD_CURRENT_A * esc_update(t_ns)
+                self._extra_a = sum(free)
+                return 0.0
+        elif thrust_fraction > 0.0:
+            gain = math.sqrt(thrust_fraction)
+
+            def update(t_ns: int) -> float:
+                return esc_update(t_ns) * gain
+        else:
+            def update(t_ns: int) -> float:
+                esc_update(t_ns)
+                return 0.0
+        updates[i] = update
+        self._esc_updates = tuple(updates)
+        self.motor_faults[i] = (kind, thrust_fraction)
+
+    def restore_motor(self, i: int) -> None:
+        """Undo :meth:`fail_motor` (a motor that was only stalled, a loose connector)."""
+        i = self._motor_index(i)
+        updates = list(self._esc_updates)
+        updates[i] = self.escs[i].update
+        self._esc_updates = tuple(updates)
+        self.motor_faults.pop(i, None)
+        self._freewheel_a[i] = 0.0
+        self._extra_a = sum(self._freewheel_a)
+
+    def set_wind(self, north_m_s: float = 0.0, east_m_s: float = 0.0, down_m_s: float = 0.0
+                 ) -> None:
+        """Steady wind (the air moves towards north/east/down at these speeds)."""
+        x = self.fdm.exec
+        x["atmosphere/wind-north-fps"] = north_m_s / FT
+        x["atmosphere/wind-east-fps"] = east_m_s / FT
+        x["atmosphere/wind-down-fps"] = down_m_s / FT
+
+    def set_turbulence(self, wind_20ft_m_s: float, severity: int = 3) -> None:
+        """JSBSim's MIL-F-8785C / MIL-HDBK-1797 Dryden turbulence (``atmosphere/turb-type``
+        4) for a wind of ``wind_20ft_m_s`` at 20 ft AGL and a probability-of-exceedance
+        ``severity`` 1..7 (3 moderate); 0 m/s switches it off. JSBSim draws it from its own
+        generator seeded with ``simulation/randomseed`` (the world's seed)."""
+        if wind_20ft_m_s < 0 or not 0 <= int(severity) <= 7:
+            raise ValueError(f"turbulence needs wind >= 0 and severity 0..7, got "
+                             f"{wind_20ft_m_s!r}, {severity!r}")
+        x = self.fdm.exec
+        if wind_20ft_m_s == 0:
+            x["atmosphere/turb-type"] = 0
+            return
+        x["atmosphere/turb-type"] = 4
+        x["atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps"] = wind_20ft_m_s / FT
+        x["atmosphere/turbulence/milspec/severity"] = int(severity)
+
+    def gust(self, north_m_s: float, east_m_s: float, down_m_s: float = 0.0,
+             rise_s: float = 1.0, hold_s: float = 1.0, fall_s: float = 1.0) -> None:
+        """A discrete 1-cosine gust (JSBSim's cosine gust, local NED frame) starting now: the
+        extra wind rises along a half cosine over ``rise_s``, holds, and falls over
+        ``fall_s``."""
+        mag = math.sqrt(north_m_s ** 2 + east_m_s ** 2 + down_m_s ** 2)
+        if mag == 0 or min(rise_s, hold_s, fall_s) < 0:
+            raise ValueError("a gust needs a non-zero velocity and non-negative durations")
+        x = self.fdm.exec
+        x["atmosphere/cosine-gust/frame"] = 3  # local NED
+        x["atmosphere/cosine-gust/X-velocity-ft_sec"] = north_m_s / mag
+        x["atmosphere/cosine-gust/Y-velocity-ft_sec"] = east_m_s / mag
+        x["atmosphere/cosine-gust/Z-velocity-ft_sec"] = down_m_s / mag
+        x["atmosphere/cosine-gust/magnitude-ft_sec"] = mag / FT
+        x["atmosphere/cosine-gust/startup-duration-sec"] = rise_s
+        x["atmosphere/cosine-gust/steady-duration-sec"] = hold_s
+        x["atmosphere/cosine-gust/end-duration-sec"] = fall_s
+        x["atmosphere/cosine-gust/start"] = 1
+
+    def wind_ned_m_s(self) -> tuple[float, float, float]:
+        """The total wind JSBSim applies now (steady + turbulence + gust), m/s NED."""
+        x = self.fdm.exec
+        return (x["atmosphere/total-wind-north-fps"] * FT,
+                x["atmosphere/total-wind-east-fps"] * FT,
+                x["atmosphere/total-wind-down-fps"] * FT)
 
     def motor_rpm(self, i: int) -> float:
         """Propeller speed of motor i (rpm), e.g. for ESC telemetry."""

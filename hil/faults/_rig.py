@@ -1,0 +1,44 @@
+"""Helpers the hook modules share to reach a rig's parts with clear errors."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hil.faults import FaultError, Rig
+
+__all__ = ["device", "world", "number"]
+
+
+def device(rig: Rig, name: str, fault: str) -> Any:
+    dev = rig.dev.get(name)
+    if dev is None:
+        raise FaultError(f"fault {fault}: this rig has no {name!r} device (devices: "
+                         f"{', '.join(sorted(rig.dev)) or 'none'})")
+    return dev
+
+
+def world(rig: Rig, fault: str) -> Any:
+    """The JSBSim :class:`hil.world.World` behind ``rig.dev["world"]``."""
+    w = device(rig, "world", fault)
+    return getattr(w, "world", w)
+
+
+def number(params: dict[str, Any], key: str, fault: str, lo: float | None = None,
+           hi: float | None = None) -> float:
+    v = params[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v:
+        raise FaultError(f"fault {fault}: parameter {key} must be a number, got {v!r}")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise FaultError(f"fault {fault}: parameter {key}={v!r} is outside "
+                         f"[{lo if lo is not None else '-inf'}, {hi if hi is not None else 'inf'}]")
+    return float(v)
+
+
+def vector(params: dict[str, Any], key: str, fault: str) -> tuple[float, float, float]:
+    v = params[key]
+    try:
+        x, y, z = (float(c) for c in v)
+    except (TypeError, ValueError):
+        raise FaultError(f"fault {fault}: parameter {key} must be three numbers, got {v!r}") \
+            from None
+    return (x, y, z)

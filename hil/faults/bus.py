@@ -1,0 +1,165 @@
+"""Bus and wire faults: what goes wrong on the copper between chips and between boards.
+
+Wires between boards are faulted at the orchestrator's routing (the wire carries nothing, as a
+broken conductor does); noise on a UART line is injected at the receiving USART inside the
+board (each bit of each frame can flip, so the receiver sets PE/FE as an STM32 does); SPI, I2C
+and CAN faults act on the board's bus models.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hil.faults import FaultError, Rig, fault_kind
+from hil.faults._rig import number
+
+FMU_IO_DIRECTIONS = ("both", "fmu_to_io", "io_to_fmu")
+#: the FMU-IO serial link's two conductors, as the orchestrator routes them
+_FMU_IO_WIRES = {"fmu_to_io": ("fmu", "io_link"), "io_to_fmu": ("io", "fmu_link")}
+
+
+def board_call(rig: Rig, fault: str, board: str, method: str, *args: Any) -> Any:
+    """A control call on a board; a refusal (bad UART name, bad rate) becomes a FaultError."""
+    if board not in rig.orch.handles:
+        raise FaultError(f"fault {fault}: no board {board!r} (boards: "
+                         f"{', '.join(sorted(rig.orch.handles))})")
+    try:
+        return rig.orch.call(board, method, *args)
+    except RuntimeError as exc:
+        last = str(exc).strip().splitlines()[-1]
+        raise FaultError(f"fault {fault}: {last}") from None
+
+
+def _split(target: str, fault: str, what: str) -> tuple[str, str]:
+    board, dot, rest = target.partition(".")
+    if not dot or not board or not rest:
+        raise FaultError(f"fault {fault}: target must be 'board.{what}', got {target!r}")
+    return board, rest
+
+
+@fault_kind("bus.fmu_io_link_cut", level="bus", targets=FMU_IO_DIRECTIONS,
+            doc="A conductor of the FMU-IO serial link (FMU USART6 <-> IO USART2) breaks: "
+                "the wire carries nothing, in one direction or both. Cutting fmu_to_io stops "
+                "the CONTROLS writes: 500 ms later the IO declares the FMU lost, raises "
+                "ALARM_FMU_LOST and drives its failsafe PWM (or the RC override when allowed). "
+                "Either direction leaves the FMU's px4io driver without replies: each "
+                "transaction times out after 10 ms x 3 tries, and after 10 failed calls in a "
+                "row (~0.3 s) it logs 'IO lost' and counts link errors in px4io_status.")
+def fmu_io_link_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    wires = list(_FMU_IO_WIRES) if target == "both" else [target]
+    for w in wires:
+        rig.orch.cut_wire(*_FMU_IO_WIRES[w])
+    return wires
+
+
+@fmu_io_link_cut.stopper
+def _fmu_io_link_cut_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                          token: Any) -> None:
+    for w in token:
+        rig.orch.mend_wire(*_FMU_IO_WIRES[w])
+
+
+@fault_kind("bus.wire_cut", level="bus",
+            doc="Any wire leaving a board or the world breaks (target 'board.port', e.g. "
+                "'io.pwm1' for the signal wire of ESC 1, 'world.rc_sbus' for the receiver "
+                "cable): the far end sees an open line: a UART receives nothing, an ESC sees "
+                "no pulses (it holds its throttle 0.5 s, then stops the motor and disarms), a "
+                "pin input floats to its pull. Mending restores the present level.")
+def wire_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    board, port = _split(target, "bus.wire_cut", "port")
+    try:
+        rig.orch.cut_wire(board, port)
+    except ValueError as exc:
+        raise FaultError(f"fault bus.wire_cut: {exc}") from None
+    return (board, port)
+
+
+@wire_cut.stopper
+def _wire_cut_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                   token: Any) -> None:
+    rig.orch.mend_wire(*token)
+
+
+@fault_kind("bus.uart_noise", level="bus", bit_error_rate=1e-4, drop_rate=0.0,
+            doc="Noise on a UART's receive line (target 'board.UART', e.g. 'io.USART2' for "
+                "what the IO hears from the FMU, 'fmu.USART6' for the replies, 'fmu.UART4' for "
+                "the GPS): each bit of each frame flips with bit_error_rate (a data bit "
+                "corrupts the byte, a parity bit or an odd number of flips sets PE, the stop "
+                "bit sets FE, a start bit loses the frame) and whole bytes are lost with "
+                "drop_rate; seeded by the board's seed. The PX4IO protocol's CRC8 rejects "
+                "corrupt packets (the IO answers CORRUPT, the FMU retries and counts link "
+                "errors); the GPS driver drops frames with bad checksums.")
+def uart_noise(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.uart_noise"
+    board, uart = _split(target, name, "UART")
+    ber = number(params, "bit_error_rate", name, 0.0, 1.0)
+    drop = number(params, "drop_rate", name, 0.0, 1.0)
+    if not ber and not drop:
+        raise FaultError(f"fault {name}: give a bit_error_rate or a drop_rate above 0")
+    board_call(rig, name, board, "uart_fault", uart, ber, drop)
+    return (board, uart)
+
+
+@uart_noise.stopper
+def _uart_noise_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                     token: Any) -> None:
+    board_call(rig, "bus.uart_noise", token[0], "uart_fault", token[1], 0.0, 0.0)
+
+
+@fault_kind("bus.spi_miso_stuck", level="bus", level_high=1,
+            doc="An SPI bus's MISO line is stuck (target 'board.SPIn', e.g. 'fmu.SPI1' with "
+                "the MPU6000, L3GD20, LSM303D and MS5611): level_high=1 reads 0xFF from every "
+                "device (a cracked trace floating to the pull-up, a chip that no longer "
+                "drives), 0 reads 0x00 (a short to ground). The devices still receive MOSI. "
+                "Each driver sees impossible registers (WHO_AM_I 0xFF, an all-ones FIFO "
+                "count), counts bad transfers in error_count and resets its chip, retrying "
+                "until the bus heals; the sensors module's voter drops the silent sensors.")
+def spi_miso_stuck(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.spi_miso_stuck"
+    board, bus = _split(target, name, "SPIn")
+    level = int(number(params, "level_high", name, 0, 1))
+    board_call(rig, name, board, "spi_miso_stuck", bus, level)
+    return (board, bus)
+
+
+@spi_miso_stuck.stopper
+def _spi_miso_stuck_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                         token: Any) -> None:
+    board_call(rig, "bus.spi_miso_stuck", token[0], "spi_miso_stuck", token[1], None)
+
+
+@fault_kind("bus.i2c_nak_storm", level="bus", nak_rate=1.0,
+            doc="A fraction nak_rate of the transactions on an I2C bus (target 'board.I2Cn', "
+                "e.g. 'fmu.I2C1' with the GPS module's HMC5883L) is not acknowledged: a "
+                "marginal pull-up, EMI on the GPS cable, a device browning out. The driver "
+                "gets -EIO, counts a bad transfer and retries at its next cycle; with 1.0 the "
+                "magnetometer goes silent and the sensors module's voter fails over.")
+def i2c_nak_storm(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.i2c_nak_storm"
+    board, bus = _split(target, name, "I2Cn")
+    rate = number(params, "nak_rate", name, 0.0, 1.0)
+    if rate == 0:
+        raise FaultError(f"fault {name}: nak_rate must be above 0")
+    board_call(rig, name, board, "i2c_fault", bus, rate, False)
+    return (board, bus)
+
+
+@fault_kind("bus.i2c_sda_stuck", level="bus",
+            doc="SDA of an I2C bus is held low (a device reset in the middle of a byte keeps "
+                "driving it; a short): the controller cannot make a START, so every "
+                "transaction fails with -ETIMEDOUT after a 1 ms wait for the bus, until the "
+                "fault is cleared. Every driver on that bus stops publishing and counts "
+                "errors.")
+def i2c_sda_stuck(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.i2c_sda_stuck"
+    board, bus = _split(target, name, "I2Cn")
+    board_call(rig, name, board, "i2c_fault", bus, 0.0, True)
+    return (board, bus)
+
+
+def _i2c_heal(rig: Rig, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
+    board_call(rig, "bus.i2c", token[0], "i2c_fault", token[1], 0.0, False)
+
+
+i2c_nak_storm.stopper(_i2c_heal)  # type: ignore[attr-defined]
+i2c_sda_stuck.stopper(_i2c_heal)  # type: ignore[attr-defined]
