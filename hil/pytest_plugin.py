@@ -11,7 +11,7 @@ Fixtures:
     v.run(0.5)                                  # advance 0.5 virtual s
     v.wait_for("imu_primary == 1", within=1.0)  # a condition, with a virtual-time budget
     v.sticks(throttle=0.6)                      # the pilot's transmitter
-    f = v.fault("sensor_absent", "mpu6000")     # any catalogue fault, now
+    f = v.fault("sensor.absent", "mpu6000")     # any catalogue fault, now
     v.clear(f)
     v.read("nav_state")                         # any scenario observable
     v.expect("armed", within=2.0)               # wait_for that fails the test on timeout

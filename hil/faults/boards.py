@@ -1,15 +1,18 @@
 """Board faults: a processor stops, hangs, reboots or resets.
 
-* ``board_crash``: the board's process is killed (a hard fault with no recovery, a lost
+* ``board.crash``: the board's process is killed (a hard fault with no recovery, a lost
   supply). The orchestrator then gives its outputs those of a dead chip: UARTs silent, PWM
   pins without pulses, driven pins released.
-* ``board_hang``: the processor stops executing but keeps its pins (a deadlock, an endless
-  interrupt, a clock failure with the watchdog disabled): its clock stops, nothing more leaves
-  it, and every pin stays at the level it had. The board's process keeps running idle.
-* ``fmu_reboot``: the FMU crashes and comes back (the watchdog resets it, or a brown-out):
+* ``board.fmu_hang`` / ``board.io_hang``: the processor stops executing but keeps its pins (a
+  deadlock, an endless interrupt, a clock failure with the watchdog disabled): its kernel stops
+  dispatching events, nothing more leaves it, every pin stays at the level it had, and the
+  process lives on; stopping the fault resumes it (``ctl_hang``/``ctl_release``).
+* ``board.servo_rail_brownout``, ``board.fram_write_fail``, ``board.cpu_overload``: a sagging
+  servo rail, an FRAM that stops taking writes, a greedy work item on a work queue.
+* ``board.fmu_reboot``: the FMU crashes and comes back (the watchdog resets it, or a brown-out):
   power-cycled after ``down_s``, it boots from its own time zero on the same FRAM, as the
   orchestrator's reboot path does for ``reboot`` on the console.
-* ``io_reset``: the IO coprocessor resets (brown-out, watchdog) and goes through its bootloader
+* ``board.io_reset``: the IO coprocessor resets (brown-out, watchdog) and goes through its bootloader
   again; the FMU's px4io driver must notice and reconfigure it.
 
 While a board is dead or hung its control calls fail; the scenario engine reads its
@@ -20,40 +23,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from board.endpoint import BoardDied
-from hil.faults import NS_PER_S, FaultError, fault_kind
+from hil.faults import NS_PER_S, FaultError, Rig, fault_kind
+from hil.faults._rig import number
+from hil.faults.bus import board_call
 
 BOARDS = ("fmu", "io")
-
-
-class HungHandle:
-    """A board handle whose processor has stopped: advancing it does nothing and produces
-    nothing (so its pins keep their last levels), and control calls fail as they would on a
-    board that no longer answers its debug port."""
-
-    def __init__(self, inner: Any) -> None:
-        self.inner = inner
-        self.name = inner.name
-        self.ports = inner.ports
-
-    def post_advance(self, start_ns: int, until_ns: int, inputs: list) -> None:
-        pass
-
-    def wait_advance(self) -> tuple[list, None]:
-        return [], None
-
-    def call(self, method: str, *args: Any) -> Any:
-        raise BoardDied(self.name, "hung")
-
-    def is_alive(self) -> bool:
-        return True
-
-    def close(self, timeout_s: float = 2.0) -> None:
-        self.inner.close(timeout_s)
-
-    def kill(self) -> None:
-        if hasattr(self.inner, "kill"):
-            self.inner.kill()
 
 
 def _check_running(orch: Any, target: str, kind: str) -> None:
@@ -61,39 +35,23 @@ def _check_running(orch: Any, target: str, kind: str) -> None:
         raise FaultError(f"fault {kind}: board {target} is already dead ({orch.dead[target]})")
 
 
-@fault_kind("board_crash", level="board", targets=BOARDS,
+@fault_kind("board.crash", level="board", targets=BOARDS,
             doc="The board's processor dies for good (hard fault without recovery, lost "
                 "supply). For the FMU: the IO stops receiving controls and, after its FMU-loss "
                 "timeout (500 ms in E14), drives the failsafe PWM values, or hands the motors "
                 "to the pilot's RC when manual override is allowed. For the IO: the FMU's "
                 "px4io driver loses its link and the motors get no pulses.")
 def crash_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    _check_running(rig.orch, target, "board_crash")
-    if isinstance(rig.orch.handles[target], HungHandle):
-        rig.orch.handles[target] = rig.orch.handles[target].inner
+    _check_running(rig.orch, target, "board.crash")
     rig.orch.kill(target)
 
 
-@fault_kind("board_hang", level="board", targets=BOARDS,
-            doc="The processor stops executing but keeps its pins (deadlock, runaway interrupt, "
-                "stopped clock): no more UART bytes or pin changes, every pin held where it "
-                "was. Unlike a crash nothing tells the other side; it must time out.")
-def hang_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    orch = rig.orch
-    _check_running(orch, target, "board_hang")
-    if not isinstance(orch.handles[target], HungHandle):
-        orch.handles[target] = HungHandle(orch.handles[target])
-
-
 def _restart(orch: Any, name: str) -> None:
-    handle = orch.handles[name]
-    if isinstance(handle, HungHandle):
-        orch.handles[name] = handle.inner
     orch.dead.pop(name, None)
     orch._restart(name)  # the orchestrator's reboot path (a new board, same FRAM)
 
 
-@fault_kind("fmu_reboot", level="board", targets=("fmu",), down_s=0.0,
+@fault_kind("board.fmu_reboot", level="board", targets=("fmu",), down_s=0.0,
             doc="The FMU crashes and reboots (watchdog reset, brown-out): dead for ``down_s`` "
                 "(0: reset at once), then a new FMU boots from its own time zero on the same "
                 "FRAM. The IO meanwhile times out to failsafe (or override). If the IO was "
@@ -104,26 +62,111 @@ def reboot_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> No
     orch = rig.orch
     down_s = float(params["down_s"])
     if down_s < 0:
-        raise FaultError(f"fault fmu_reboot: negative down_s {down_s}")
+        raise FaultError(f"fault board.fmu_reboot: negative down_s {down_s}")
     if down_s == 0:
         _restart(orch, target)
         return
     later = getattr(rig, "later", None)
     if later is None:
-        raise FaultError("fault fmu_reboot with down_s > 0 needs a rig with timers "
+        raise FaultError("fault board.fmu_reboot with down_s > 0 needs a rig with timers "
                          "(hil.faults.Injector)")
     if target not in orch.dead:
-        if isinstance(orch.handles[target], HungHandle):
-            orch.handles[target] = orch.handles[target].inner
         orch.kill(target)
     later(t_ns + round(down_s * NS_PER_S), lambda now: _restart(orch, target))
 
 
-@fault_kind("io_reset", level="board", targets=("io",),
+@fault_kind("board.io_reset", level="board", targets=("io",),
             doc="The IO coprocessor resets (brown-out on the servo rail, watchdog): it runs "
                 "its bootloader again (200 ms) and restarts with its registers at reset "
                 "values, outputs disarmed. The FMU's px4io driver sees the reset in the IO's "
                 "status and configures it again; in flight that is a short loss of thrust.")
 def io_reset_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    _check_running(rig.orch, target, "io_reset")
+    _check_running(rig.orch, target, "board.io_reset")
     rig.orch.call("io", "reset")
+
+
+def _hang(board: str) -> Any:
+    def start(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+        return board_call(rig, f"board.{board}_hang", board, "hang")
+
+    def stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
+        board_call(rig, f"board.{board}_hang", board, "release")
+
+    return start, stop
+
+
+_fmu_start, _fmu_stop = _hang("fmu")
+fmu_hang = fault_kind(
+    "board.fmu_hang", level="board",
+    doc="The FMU's CPU halts (a lock-up with interrupts masked, a hard-fault loop without a "
+        "watchdog): no firmware, interrupt or timer callback runs and nothing new is sent, but "
+        "the process lives and its pins hold their last levels. The IO stops receiving "
+        "CONTROLS and after 500 ms declares the FMU lost (ALARM_FMU_LOST) and drives its "
+        "failsafe PWM, or hands the motors to the pilot's RC override when allowed. Stopping "
+        "the fault resumes the CPU where it was: the interrupts that fell due run first and the "
+        "flight stack catches up from the present time (its estimator sees a gap).")(_fmu_start)
+fmu_hang.stopper(_fmu_stop)  # type: ignore[attr-defined]
+
+_io_start, _io_stop = _hang("io")
+io_hang = fault_kind(
+    "board.io_hang", level="board",
+    doc="The IO's CPU halts: its timers keep generating the last PWM (hardware), but nothing "
+        "answers the FMU, so the px4io driver times out and reports the IO lost after 10 "
+        "failed calls; RC input and the safety switch are no longer processed. Stopping the "
+        "fault resumes the IO firmware.")(_io_start)
+io_hang.stopper(_io_stop)  # type: ignore[attr-defined]
+
+
+@fault_kind("board.servo_rail_brownout", level="board", volts=4.2,
+            doc="The IO's servo rail (VSERVO, normally 5 V from the BEC) sags to `volts`, as "
+                "when a servo stalls or the BEC fails. The IO measures it on its ADC, reports "
+                "it in its STATUS page (px4io_status.voltage_v) and the FMU logs it.")
+def servo_rail_brownout(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    board_call(rig, "board.servo_rail_brownout", "io", "set_servo_rail_v",
+               number(params, "volts", "board.servo_rail_brownout", 0.0, 10.0))
+    return None
+
+
+@servo_rail_brownout.stopper
+def _servo_rail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                     token: Any) -> None:
+    board_call(rig, "board.servo_rail_brownout", "io", "set_servo_rail_v", 5.0)
+
+
+@fault_kind("board.fram_write_fail", level="board",
+            doc="The FMU's FRAM (FM25V01 on SPI2) stops taking writes: its write-enable latch "
+                "never sets after WREN (a failed charge pump, a chip at the end of its life). "
+                "The FRAM driver checks WEL after each WREN and reports 'write enable latch "
+                "did not set'; a parameter save fails and says so ('write to parameter slot n "
+                "failed'); the other slot still holds the last good save, so nothing already "
+                "saved is lost and the next boot loads it.")
+def fram_write_fail(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", True)
+    return None
+
+
+@fram_write_fail.stopper
+def _fram_write_fail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                          token: Any) -> None:
+    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", False)
+
+
+@fault_kind("board.cpu_overload", level="board", fraction=0.8, period_us=1000,
+            doc="A work item on a PX4 work queue of the FMU (target the queue, e.g. "
+                "'wq:SPI1', 'wq:rate_ctrl', 'wq:INS0') burns `fraction` of every period_us "
+                "of CPU time: a runaway module or a driver spinning. The queue's other items "
+                "start late by up to that much: sensor samples reach the estimator older, the "
+                "rate controller runs late, visible in the perf counters and in the "
+                "timestamp - timestamp_sample of what the queue publishes.")
+def cpu_overload(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "board.cpu_overload"
+    frac = number(params, "fraction", name, 0.0, 0.99)
+    period = int(number(params, "period_us", name, 100, 1_000_000))
+    board_call(rig, name, "fmu", "cpu_load", target, frac, period)
+    return None
+
+
+@cpu_overload.stopper
+def _cpu_overload_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                       token: Any) -> None:
+    board_call(rig, "board.cpu_overload", "fmu", "cpu_load", target, 0.0)

@@ -16,7 +16,7 @@ def _gps(rig: Any, what: str, *args: Any) -> None:
     rig.orch.call("fmu", "gps_fault", what, *args)
 
 
-@fault_kind("gps_lost_fix", level="gps", targets=("gps",),
+@fault_kind("gps.lost_fix", level="gps", targets=("gps",),
             doc="The receiver loses its fix (sky blocked: a building, a hangar, a canopy): it "
                 "keeps sending navigation messages with fix type 0 and no satellites used. "
                 "The estimator stops fusing GPS, the position becomes invalid after its "
@@ -31,7 +31,7 @@ def lost_fix_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, toke
     _gps(rig, "lose_fix", False)
 
 
-@fault_kind("gps_degraded", level="gps", targets=("gps",), factor=10.0,
+@fault_kind("gps.degraded", level="gps", targets=("gps",), factor=10.0,
             doc="Accuracy worse by ``factor`` (multipath near buildings, few satellites, poor "
                 "geometry): the position error and the reported hAcc/vAcc/sAcc grow alike. "
                 "The estimator's GPS quality checks (EKF2_REQ_EPH and friends) fail, so arming "
@@ -48,7 +48,7 @@ def degraded_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, toke
     _gps(rig, "degrade", 1.0)
 
 
-@fault_kind("gps_jamming", level="gps", targets=("gps",), level_ind=200,
+@fault_kind("gps.jamming", level="gps", targets=("gps",), level_ind=200,
             doc="RF jamming of the GNSS band: the receiver's jamming indicator (MON-HW jamInd, "
                 "0..255) rises to ``level_ind``, noise rises, C/N0 and satellites drop, "
                 "accuracy degrades, and above 230 the fix is lost.")
@@ -64,7 +64,7 @@ def jam_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: An
     _gps(rig, "jam", 0)
 
 
-@fault_kind("gps_jump", level="gps", targets=("gps",), north_m=50.0, east_m=0.0, down_m=0.0,
+@fault_kind("gps.jump", level="gps", targets=("gps",), north_m=50.0, east_m=0.0, down_m=0.0,
             doc="The reported position jumps by an offset (a multipath lock onto a reflection, "
                 "spoofing) while the fix and its claimed accuracy stay good. The estimator's "
                 "GPS innovation check rejects the jump and, when it persists, resets to it.")
@@ -77,7 +77,7 @@ def jump_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: A
     _gps(rig, "jump", 0.0, 0.0, 0.0)
 
 
-@fault_kind("gps_absent", level="gps", targets=("gps",),
+@fault_kind("gps.absent", level="gps", targets=("gps",),
             doc="The GPS module stops talking (unplugged, its supply lost, a dead module): "
                 "nothing arrives on UART4. The GPS driver times out and rescans baud rates; "
                 "the estimator loses GPS as for a lost fix, and the preflight checks say "

@@ -51,14 +51,14 @@ def _close(windows: Any, item: tuple, t_ns: int) -> None:
             return
 
 
-@fault_kind("rc_tx_off", level="rc", targets=("rc",),
+@fault_kind("rc.tx_off", level="rc", targets=("rc",),
             doc="The pilot's transmitter is switched off or its battery dies: every receiver "
                 "bound to it loses the link at once and does what its protocol does on loss "
                 "(S.BUS: frame-lost then failsafe flag; DSM: silence; PPM: hold, then no "
                 "pulses). PX4 reports RC lost and, after COM_RC_LOSS_T, takes the NAV_RCL_ACT "
                 "reaction (Return by default) once in the air.")
 def tx_off_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    _receivers(rig, target, "rc_tx_off")
+    _receivers(rig, target, "rc.tx_off")
     rig.dev["rc"].tx.power(t_ns, False)
 
 
@@ -67,13 +67,13 @@ def tx_off_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token:
     rig.dev["rc"].tx.power(t_ns, True)
 
 
-@fault_kind("rc_out_of_range", level="rc", targets=RC_TARGETS,
+@fault_kind("rc.out_of_range", level="rc", targets=RC_TARGETS,
             doc="The receiver loses the RF link with the transmitter still on: out of range, "
                 "a shadowed antenna, 2.4 GHz interference. The receiver behaves as on any link "
                 "loss (see the module doc), and recovers when the link comes back.")
 def oor_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
     return [(rx, _open(rx._out_of_range, t_ns)) for rx in _receivers(rig, target,
-                                                                       "rc_out_of_range")]
+                                                                       "rc.out_of_range")]
 
 
 @oor_start.stopper
@@ -82,14 +82,14 @@ def oor_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: li
         _close(rx._out_of_range, item, t_ns)
 
 
-@fault_kind("rc_sbus_failsafe", level="rc", targets=("sbus",),
+@fault_kind("rc.sbus_failsafe", level="rc", targets=("sbus",),
             doc="An S.BUS receiver sets its failsafe flag with a good RF link (a receiver "
                 "that decided on failsafe by itself, e.g. on low receiver voltage, or a "
                 "failsafe test from the transmitter). The channels still carry values; the IO "
                 "must treat the frame as RC lost, as PX4's S.BUS decoder does.")
 def sbus_fs_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
     return [(rx, _open(rx._forced_failsafe, t_ns)) for rx in _receivers(rig, target,
-                                                                          "rc_sbus_failsafe")]
+                                                                          "rc.sbus_failsafe")]
 
 
 @sbus_fs_start.stopper
@@ -98,7 +98,7 @@ def sbus_fs_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token
         _close(rx._forced_failsafe, item, t_ns)
 
 
-@fault_kind("rc_frame_loss", level="rc", targets=RC_TARGETS, prob=1.0,
+@fault_kind("rc.frame_loss", level="rc", targets=RC_TARGETS, prob=1.0,
             doc="A burst of lost RF frames (fading, a brief blockage): with ``prob`` 1 every "
                 "frame in the window is lost, below 1 each frame is lost with that "
                 "probability (seeded, reproducible). Short bursts are bridged by the "
@@ -109,7 +109,7 @@ def loss_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list
     if not 0.0 < prob <= 1.0:
         raise FaultError(f"fault rc_frame_loss: prob {prob} outside (0, 1]")
     token = []
-    for rx in _receivers(rig, target, "rc_frame_loss"):
+    for rx in _receivers(rig, target, "rc.frame_loss"):
         if prob >= 1.0:
             token.append((rx, _open(rx._dropped, t_ns), None))
         else:
@@ -127,7 +127,7 @@ def loss_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: l
             rx.frame_loss_prob = old_prob
 
 
-@fault_kind("rc_glitch", level="rc", targets=RC_TARGETS, byte_prob=0.2, spike_prob=0.0,
+@fault_kind("rc.glitch", level="rc", targets=RC_TARGETS, byte_prob=0.2, spike_prob=0.0,
             doc="Corruption on the receiver's wire or in its decoded channels (EMI on the "
                 "signal lead, a marginal receiver): per frame, with ``byte_prob`` one byte "
                 "(PPM: one spurious edge pair) is damaged, with ``spike_prob`` one channel "
@@ -137,9 +137,9 @@ def loss_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: l
 def glitch_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
     bp, sp = float(params["byte_prob"]), float(params["spike_prob"])
     if not (0.0 <= bp <= 1.0 and 0.0 <= sp <= 1.0):
-        raise FaultError(f"fault rc_glitch: probabilities must be in [0, 1], got {bp}, {sp}")
+        raise FaultError(f"fault rc.glitch: probabilities must be in [0, 1], got {bp}, {sp}")
     return [(rx, _open(rx._glitch, t_ns, (bp, sp))) for rx in _receivers(rig, target,
-                                                                           "rc_glitch")]
+                                                                           "rc.glitch")]
 
 
 @glitch_start.stopper

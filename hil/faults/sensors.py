@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Any
 
 from hil.faults import fault_kind
+from hil.faults.bus import board_call
 
 SENSORS = ("mpu6000", "l3gd20", "lsm303d", "ms5611", "hmc5883")
 #: chips with a data-ready line (the MS5611 has none: the driver times its conversions)
@@ -38,32 +39,32 @@ def _flag(name: str, field: str, doc: str, targets: tuple[str, ...] = SENSORS) -
         _set(rig, target, field, False)
 
 
-_flag("sensor_absent", "absent",
+_flag("sensor.absent", "absent",
       "The chip stops answering on its bus: a cracked solder joint, a dead chip, a lost supply. "
       "On SPI nothing drives MISO so every byte reads 0xFF; on I2C the chip no longer ACKs its "
       "address; data-ready lines stay low. The driver sees bad registers and timeouts, resets "
       "the chip in vain, and the sensors module fails over to a redundant chip if there is one "
       "(otherwise the preflight checks report the sensor missing).")
-_flag("sensor_stuck", "frozen",
+_flag("sensor.stuck", "frozen",
       "The data registers stop updating while the chip still answers and signals data-ready "
       "(a hung conversion, a latched ADC): every sample repeats. Real sensor noise never "
       "repeats exactly, so the driver's stuck-data counter and the voter's freeze detection "
       "declare the sensor unhealthy.")
-_flag("sensor_noise", "random_data",
+_flag("sensor.noise", "random_data",
       "The data registers read random bytes (a corrupted SPI line, EMI on the bus, a chip "
       "in a bad internal state). The driver's consistency checks count errors and the voter "
       "drops the sensor for its error rate or its disagreement with the others.")
-_flag("sensor_saturate", "saturate",
+_flag("sensor.saturate", "saturate",
       "Every axis reads its positive full scale (a shock beyond the range, a broken MEMS "
       "structure, an overflowed magnetometer). The readings clip and freeze at the limit; "
       "the voter and the estimator reject the sensor.")
-_flag("sensor_drdy_stuck", "drdy_stuck",
+_flag("sensor.drdy_stuck", "drdy_stuck",
       "The data-ready line never asserts (a broken trace or a lost interrupt configuration). "
       "The driver notices the missing interrupts and polls the chip instead, as PX4's drivers "
       "fall back to polling, so the data keeps flowing.", DRDY_SENSORS)
 
 
-@fault_kind("sensor_wrong_id", level="sensor", targets=SENSORS, value=0x00,
+@fault_kind("sensor.wrong_id", level="sensor", targets=SENSORS, value=0x00,
             doc="The chip answers a wrong identity (WHO_AM_I, the HMC5883's ID registers, the "
                 "MS5611's PROM CRC word): a wrong or counterfeit part fitted, or a chip whose "
                 "identity register reads garbage after a brown-out. A driver checks the "
@@ -79,7 +80,7 @@ def wrong_id_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, toke
     _set(rig, target, "wrong_id", None)
 
 
-@fault_kind("sensor_bias_step", level="sensor", targets=SENSORS, x=0.0, y=0.0, z=0.0,
+@fault_kind("sensor.bias_step", level="sensor", targets=SENSORS, x=0.0, y=0.0, z=0.0,
             doc="A step in the sensor's offset (a shock that shifts a MEMS proof mass, a "
                 "temperature jump, a magnetised part near the compass), in SI units on the "
                 "chip's axes: rad/s for a gyro, m/s^2 for an accel, gauss for a magnetometer, "
@@ -93,3 +94,25 @@ def bias_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None
 @bias_start.stopper
 def bias_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
     _set(rig, target, "bias_step", (0.0, 0.0, 0.0))
+
+
+@fault_kind("sensor.bias_drift", level="sensor", rate=(0.01, 0.0, 0.0),
+            doc="A sensor's bias drifts at `rate` SI units per second per axis (target the FMU "
+                "device: mpu6000 gyro rad/s/s, l3gd20, lsm303d accel m/s^2/s, hmc5883 gauss/s, "
+                "ms5611 Pa/s on the first axis): a temperature-driven or aging drift, a part "
+                "slowly magnetised. The chip's output ramps (updated every 10 ms); the "
+                "estimator's bias states follow a slow drift, a fast one shows as growing "
+                "innovations and, between redundant sensors, as inconsistency in the voter. "
+                "Stopping leaves the bias where it got to.")
+def bias_drift(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    from hil.faults._rig import vector
+
+    rate = vector(params, "rate", "sensor.bias_drift")
+    board_call(rig, "sensor.bias_drift", "fmu", "sensor_drift", target, rate)
+    return None
+
+
+@bias_drift.stopper
+def _bias_drift_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
+                     token: Any) -> None:
+    board_call(rig, "sensor.bias_drift", "fmu", "sensor_drift", target, (0.0, 0.0, 0.0))

@@ -104,10 +104,10 @@ class Sampler:
         return self._texts
 
     def alive(self, board: str) -> bool:
-        from hil.faults.boards import HungHandle
-
-        return board not in self.orch.dead and not isinstance(self.orch.handles.get(board),
-                                                              HungHandle)
+        """Not crashed and not hung (a hung board's CPU is halted: ``ctl_hung``)."""
+        if board in self.orch.dead or board not in self.orch.handles:
+            return False
+        return not self.orch.call(board, "hung")
 
     # -- reading by name ----------------------------------------------------------------------
 

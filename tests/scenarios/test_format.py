@@ -14,7 +14,7 @@ GOOD = {
     "events": {"lost": "rc_lost"},
     "timeline": [
         {"wait": 2},
-        {"fault": {"kind": "rc_out_of_range", "target": "dsm", "duration": 1.5, "name": "oor"}},
+        {"fault": {"kind": "rc.out_of_range", "target": "dsm", "duration": 1.5, "name": "oor"}},
         {"pilot": {"sticks": {"throttle": 0.5}, "ramp": 1}},
         {"gcs": {"takeoff": 4}, "at": 5},
         {"wait": {"until": "alt_agl_m > 3", "within": 20}},
@@ -33,7 +33,7 @@ def test_a_good_scenario_loads_with_its_events_and_texts():
     assert (sc.name, sc.seed, sc.rc, sc.params) == ("demo", 3, "dsm", {"NAV_RCL_ACT": 3})
     assert [s.kind for s in sc.timeline] == ["wait", "fault", "pilot", "gcs", "wait"]
     assert sc.timeline[1].event == "oor" and sc.timeline[3].at_s == 5.0
-    assert sc.fault_kinds() == {"rc_out_of_range"}
+    assert sc.fault_kinds() == {"rc.out_of_range"}
     assert [e.text for e in sc.expect] == [
         "within 0.3 s of oor: rc_lost", "eventually from oor.end: not rc_lost",
         "always from lost for 2 s: motor_us between 900 2000", "never: estimator_fault"]
@@ -41,11 +41,11 @@ def test_a_good_scenario_loads_with_its_events_and_texts():
 
 @pytest.mark.parametrize("patch, message", [
     ({"timeline": [{"fault": {"kind": "rc_jammer"}}]}, "unknown fault 'rc_jammer'"),
-    ({"timeline": [{"fault": {"kind": "sensor_absent", "target": "icm20602"}}]},
+    ({"timeline": [{"fault": {"kind": "sensor.absent", "target": "icm20602"}}]},
      "target 'icm20602' is not one of"),
-    ({"timeline": [{"fault": {"kind": "gps_jump", "params": {"up_m": 3}}}]},
+    ({"timeline": [{"fault": {"kind": "gps.jump", "params": {"up_m": 3}}}]},
      "unknown parameter"),
-    ({"timeline": [{"fault": {"kind": "board_crash", "duration": 2}}]}, "cannot be undone"),
+    ({"timeline": [{"fault": {"kind": "board.crash", "duration": 2}}]}, "cannot be undone"),
     ({"timeline": [{"gcs": "arn"}]}, "unknown GCS command 'arn'"),
     ({"timeline": [{"wait": {"until": "armed"}}]}, "needs 'until' and 'within'"),
     ({"timeline": [{"clear": "nothing"}]}, "no fault named 'nothing'"),
@@ -85,7 +85,7 @@ def test_cli_reports_a_bad_file_without_a_traceback(tmp_path, capsys):
 def test_cli_lists_the_catalogue(capsys):
     assert main(["faults"]) == 0
     out = capsys.readouterr().out
-    assert "sensor_absent  [sensor]" in out and "rc_tx_off  [rc]" in out
+    assert "sensor.absent  [sensor]" in out and "rc.tx_off  [rc]" in out
 
 
 def _eval(text, values):

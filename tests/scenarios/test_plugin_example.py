@@ -11,7 +11,7 @@ def test_primary_imu_failure_fails_over_within_100_ms(hil_vehicle):
     v.wait_for("imu_healthy[0:2]", within=3.0)
     v.run(0.5)
     assert v.read("imu_primary") == 0
-    v.fault("sensor_absent", "mpu6000")
+    v.fault("sensor.absent", "mpu6000")
     took = v.wait_for("imu_primary == 1", within=0.1, step=0.005)
     assert took < 0.1
     assert v.read("imu_failovers") >= 1
@@ -23,6 +23,6 @@ def test_transmitter_off_is_seen_by_the_fmu_as_receiver_failsafe(hil_vehicle):
     v.wait_for("not rc_lost", within=3.0)
     v.sticks(throttle=0.2)
     v.wait_for("rc_channels_us[2] == 1200 +- 2", within=0.5)
-    v.fault("rc_tx_off")
+    v.fault("rc.tx_off")
     took = v.wait_for("rc_failsafe", within=1.5)
     assert 0.9 < took < 1.3  # the S.BUS receiver's ~1 s failsafe delay

@@ -17,7 +17,7 @@ def test_plugin_fixtures_and_virtual_time_timeouts(pytester):
         def test_bad_fault_is_a_clear_error(hil_vehicle):
             from hil.faults import FaultError
             with pytest.raises(FaultError, match="target 'fmu' is not one of"):
-                hil_vehicle.fault("sensor_absent", "fmu")
+                hil_vehicle.fault("sensor.absent", "fmu")
             with pytest.raises(ValueError, match="unknown observable"):
                 hil_vehicle.read("warp")
     ''')
