@@ -446,27 +446,49 @@ def test_fmu_restart_in_air_keeps_the_io_armed_and_asks_to_arm():
                          | StatusFlags.MIXER_OK | StatusFlags.FMU_INITIALIZED)
     sub = rig.platform.orb.node("vehicle_command")
     rig.cmd("start", "-m", MIXER)
-    rig.run_ms(60)
+    rig.run_ms(500)
     assert "in-air restart" in rig.dmesg()
+    # PX4's sequence: nothing is asked before the commander has published actuator_armed
+    assert sub.last is None
+    assert regs.arming & ArmingA.FMU_ARMED  # held meanwhile
+    assert not rig.io.writes_to(PageNo.RC_CONFIG)  # ignored by an IO with safety off
+    rig.publish("actuator_armed", armed=False, ready_to_arm=False)
+    rig.run_ms(250)                                 # the next arming check (every 200 ms)
     cmd = sub.last
     assert cmd is not None and cmd.command == 400 and cmd.param1 == 1.0
-    assert regs.arming & ArmingA.FMU_ARMED  # held while the commander re-arms
-    assert not rig.io.writes_to(PageNo.RC_CONFIG)  # ignored by an IO with safety off
+    assert cmd.param2 == 21196                      # flying: no preflight checks
+    asked = sub.publish_count
+    rig.run_ms(400)
+    assert sub.publish_count > asked                # asked again until armed
     rig.publish("actuator_armed", armed=True, ready_to_arm=True)
     rig.run_ms(1500)
     assert regs.arming & ArmingA.FMU_ARMED
+    assert "armed again" in rig.dmesg()
 
 
-def test_fmu_restart_in_air_without_rearm_disarms_the_io_after_1_s():
+def test_fmu_restart_in_air_without_rearm_disarms_the_io_after_2_s_of_asking():
     rig = make_rig(start=False)
     rig.io.regs.arming = ArmingA.FMU_ARMED | ArmingA.INAIR_RESTART_OK
     rig.cmd("start")
     rig.publish("actuator_armed", armed=False)
-    rig.run_ms(900)
+    rig.run_ms(1900)
     assert rig.io.regs.arming & ArmingA.FMU_ARMED
-    rig.run_ms(400)
+    rig.run_ms(600)
     assert not rig.io.regs.arming & ArmingA.FMU_ARMED
-    assert "not armed again within 1 s" in rig.dmesg()
+    assert "failed to recover from in-air restart (not armed)" in rig.dmesg()
+
+
+def test_fmu_restart_in_air_without_a_commander_gives_up_after_3_s():
+    rig = make_rig(start=False)
+    rig.io.regs.arming = ArmingA.FMU_ARMED | ArmingA.INAIR_RESTART_OK
+    sub = rig.platform.orb.node("vehicle_command")
+    rig.cmd("start")
+    rig.run_ms(2900)
+    assert rig.io.regs.arming & ArmingA.FMU_ARMED
+    rig.run_ms(600)
+    assert not rig.io.regs.arming & ArmingA.FMU_ARMED
+    assert sub.last is None
+    assert "failed to recover from in-air restart (no commander)" in rig.dmesg()
 
 
 def test_stop_and_start_again():

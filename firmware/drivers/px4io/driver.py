@@ -55,8 +55,10 @@ GROUP_INTERVAL_US = 33_000  #: actuator_controls_1..3 subscription interval (E14
 TASK_PRIORITY = -15
 PROTOCOL_RETRY_US = 700_000
 PROTOCOL_RETRY_GAP_US = 2_000
-#: [model] how long an in-air FMU restart keeps FMU_ARMED waiting for the commander to re-arm
-INAIR_REARM_US = 1_000_000
+#: in-air restart (PX4 px4io): wait this long for the commander's first actuator_armed ...
+INAIR_WAIT_COMMANDER_US = 3_000_000
+#: ... then ask it to arm (again at every arming check) for this long before giving up
+INAIR_REARM_US = 2_000_000
 MIXER_CHUNK_TRIES = 30  #: mixer_send retries per chunk, 333 us apart (§2.11)
 MIXER_RETRY_GAP_US = 333
 
@@ -82,6 +84,7 @@ _ALARM_TEXT = ((_AL.FMU_LOST, "FMU lost (no controls for 500 ms)"),
 _RC_SOURCES = ((_SF.RC_PPM, 2), (_SF.RC_DSM, 3), (_SF.RC_SBUS, 4), (_SF.RC_ST24, 5),
                (_SF.RC_SUMD, 11))
 _VEHICLE_CMD_ARM = 400
+_FORCE_ARM_MAGIC = 21196  #: vehicle_command param2: arm without the preflight checks
 _VEHICLE_TYPE_FIXED_WING = 2
 
 
@@ -117,7 +120,8 @@ class Px4ioDriver:
         self.mixer_ok = False
         self.io_reboots = 0
         self.inair_restart = False
-        self._inair_deadline_us = 0
+        self._inair_start_us = 0
+        self._inair_asked_us: int | None = None
         self.inair_restart_ok = False
         self.termination_failsafe = False
         self.update_rate_hz = 0
@@ -248,10 +252,11 @@ class Px4ioDriver:
         arming = regs[0] if regs is not None else 0
         if arming & _A.INAIR_RESTART_OK and arming & _A.FMU_ARMED:
             self.inair_restart = self.inair_restart_ok = True
-            self._inair_deadline_us = self._now() + INAIR_REARM_US
+            self._inair_start_us = self._now()
+            self._inair_asked_us = None
             self.arming = arming
-            self.m.warn("IO is armed with INAIR_RESTART_OK: in-air restart, asking to arm")
-            self._request_arm()
+            self.m.warn("IO is armed with INAIR_RESTART_OK: recovering from an FMU in-air "
+                        "restart")
         else:
             v = yield from link.modify(PageNo.SETUP, Setup.ARMING, _A.FMU_ARMED
                                        | _A.INAIR_RESTART_OK | _A.MANUAL_OVERRIDE_OK
@@ -266,10 +271,38 @@ class Px4ioDriver:
         return True
 
     def _request_arm(self) -> None:
+        """The in-air restart's arm request. The vehicle is flying: the commander must not hold
+        it to its preflight checks (PX4's IN_AIR_RESTORE arming state skipped them), so the
+        request carries the force-arm magic."""
         pub = self.m.advertise("vehicle_command")
         cmd = self.platform.orb.new("vehicle_command", timestamp=self._now(),
-                                    command=_VEHICLE_CMD_ARM, param1=1.0)
+                                    command=_VEHICLE_CMD_ARM, param1=1.0,
+                                    param2=float(_FORCE_ARM_MAGIC))
         pub.publish(cmd)
+
+    def _inair_pending(self, armed: Any) -> bool:
+        """PX4's recovery sequence: wait for the commander to publish actuator_armed (3 s at
+        most), then ask it to arm until it has (2 s at most); meanwhile the IO keeps
+        FMU_ARMED. True while the IO's arming must be left alone."""
+        now = self._now()
+        if armed is not None and armed.armed:
+            self.inair_restart = False
+            self.m.info("in-air restart: armed again")
+            return False
+        if armed is None:
+            if now - self._inair_start_us < INAIR_WAIT_COMMANDER_US:
+                return True
+            why = "no commander"
+        else:
+            if self._inair_asked_us is None:
+                self._inair_asked_us = now
+            if now - self._inair_asked_us < INAIR_REARM_US:
+                self._request_arm()
+                return True
+            why = "not armed"
+        self.inair_restart = False
+        self.m.error(f"failed to recover from in-air restart ({why}), disarming the IO")
+        return False
 
     def _configure(self) -> Txn:
         """Everything a fresh IO needs from the FMU; also run again after an IO reboot."""
@@ -380,14 +413,8 @@ class Px4ioDriver:
             bits |= _A.MANUAL_OVERRIDE_OK | _A.OVERRIDE_IMMEDIATE
         bits |= _A.INAIR_RESTART_OK if self.inair_restart_ok else 0
         bits |= _A.TERMINATION_FAILSAFE if self.termination_failsafe else 0
-        if self.inair_restart:  # keep FMU_ARMED on the IO until the commander re-arms
-            if armed is not None and armed.armed:
-                self.inair_restart = False
-            elif self._now() < self._inair_deadline_us:
-                return True
-            else:
-                self.inair_restart = False
-                self.m.warn("in-air restart: not armed again within 1 s, disarming the IO")
+        if self.inair_restart and self._inair_pending(armed):
+            return True  # keep FMU_ARMED on the IO until the commander re-arms
         v = yield from self.link.modify(PageNo.SETUP, Setup.ARMING, _ARMING_OWNED & ~bits,
                                         bits)
         if v is None:
