@@ -99,7 +99,9 @@ class LocalHandle:
     def __init__(self, name: str, factory: str, kwargs: dict[str, Any] | None = None) -> None:
         self.name = name
         self.endpoint = Endpoint(build_board(factory, kwargs))
-        self._reply: bytes | None = None
+        #: replies to advances posted and not yet waited for (a pipelined orchestrator posts
+        #: the next quantum before waiting for the present one)
+        self._replies: list[bytes] = []
         hello = _loads(self.endpoint.hello())
         self.ports: list[tuple[str, str, str]] = hello[1][1]
         self.alive = True
@@ -110,11 +112,11 @@ class LocalHandle:
         return self.endpoint.board
 
     def post_advance(self, start_ns: int, until_ns: int, inputs: list[Record]) -> None:
-        self._reply = self.endpoint.handle(_dumps((OP_ADVANCE, start_ns, until_ns, inputs)))
+        self._replies.append(self.endpoint.handle(_dumps((OP_ADVANCE, start_ns, until_ns,
+                                                          inputs))))
 
     def wait_advance(self) -> tuple[list[Record], int | None]:
-        reply = _loads(self._reply)  # type: ignore[arg-type]
-        self._reply = None
+        reply = _loads(self._replies.pop(0))
         if reply[0] == R_OK:
             return reply[1], reply[2]
         self.alive = False

@@ -47,6 +47,7 @@ class FlightConfig:
     progress: bool = True
     plot: bool = True
     keep_truth: bool = False            # return the recorded truth in the summary ("truth")
+    pipeline: bool = False              # lookahead lockstep (see Orchestrator._step_pipelined)
 
 
 class _Recorder:
@@ -89,7 +90,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
               "RTL_DESCEND_ALT": cfg.altitude_m, **cfg.params}
     scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
-                        params=params, gcs=True)
+                        params=params, gcs=True, pipeline=cfg.pipeline)
     orch, dev = build_system(scfg)
     gcs: GcsClient = dev["gcs"]
     world = dev["world"].world

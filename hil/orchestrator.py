@@ -70,7 +70,7 @@ class Orchestrator:
                  world: Any = None, quantum_ns: int = 1_000_000, mode: str = "process",
                  speed: float | None = None, trace_path: str | None = None,
                  start_method: str = "spawn", keep_running_on_death: bool = True,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, pipeline: bool = False) -> None:
         if quantum_ns <= 0 or type(quantum_ns) is not int:
             raise ValueError(f"quantum must be a positive integer ns, got {quantum_ns!r}")
         if mode not in ("process", "local"):
@@ -99,6 +99,14 @@ class Orchestrator:
         self._next_ns: dict[str, int | None] = {name: 0 for name in boards}
         self.skip_idle = True
         self.exchanges = 0
+        #: Lookahead: each board is handed the next quantum before the orchestrator waits for
+        #: the present one, so boards never idle while the orchestrator routes and steps the
+        #: world (see :meth:`_step_pipelined`).
+        self.pipeline = pipeline
+        #: pipelined mode: advances posted and not yet waited for, (until_ns, inputs), per board
+        self._pending: dict[str, list[tuple[int, list]]] = {name: [] for name in boards}
+        #: pipelined mode: the end of the last quantum handed to each board
+        self._posted_to: dict[str, int] = {name: 0 for name in boards}
         self._routes: dict[tuple[str, str], list[tuple[str, str]]] = {}
         #: faults on wires: (board, output port) -> what the wire does to each record
         self._wire_faults: dict[tuple[str, str], _WireFault] = {}
@@ -173,6 +181,9 @@ class Orchestrator:
         """Advance everything by one quantum."""
         if not self._started:
             self.start()
+        if self.pipeline:
+            self._step_pipelined()
+            return
         start = self.t_ns
         until = start + self.quantum_ns
         inbox = self._inbox
@@ -223,6 +234,83 @@ class Orchestrator:
             hook(self)
         if self.speed is not None:
             self._pace()
+
+    def _step_pipelined(self) -> None:
+        """One quantum with lookahead.
+
+        Each board already holds the quantum ``[t, t+q)`` (posted one step earlier). The world
+        steps to ``t+q``; then every board is handed ``[t+q, t+2q)`` with what has been routed
+        to it so far, and only then does the orchestrator wait for ``[t, t+q)``. A board thus
+        goes from one quantum to the next without waiting for the orchestrator's turn, and on
+        two cores the FMU, the IO and the world run side by side. The price is latency between
+        boards: a record a board sends in quantum k reaches another board in quantum k+2 (at
+        most two quanta late, stamps kept). The world's records still reach the boards, and
+        theirs the world, at most one quantum late. Deterministic like the plain step: what
+        each quantum receives depends only on quantum indices. Idle boards are not skipped.
+        """
+        start = self.t_ns
+        q = self.quantum_ns
+        until = start + q
+        inbox = self._inbox
+        dead = self.dead
+        pending = self._pending
+        posted = self._posted_to
+        live = [(n, h) for n, h in self.handles.items() if not (dead and n in dead)]
+        for name, handle in live:  # a board not yet ahead (first quantum, reboot, drained)
+            if posted[name] < until:
+                self._post(name, handle, posted[name] if posted[name] > start else start, until)
+        world = self.world
+        if world is not None:
+            world.run_until(until)
+            out = world.outputs(until)
+            if out:
+                self._route_all(WORLD, out)
+        for name, handle in live:
+            if name not in dead and posted[name] < until + q:
+                self._post(name, handle, posted[name], until + q)
+        for name, handle in live:
+            self._collect(name, handle, until)
+        self.t_ns = until
+        while self._reboot_pending:
+            self._restart(self._reboot_pending.pop(0))
+        self.quanta += 1
+        for hook in self.on_quantum:
+            hook(self)
+        if self.speed is not None:
+            self._pace()
+
+    def _post(self, name: str, handle: Any, start: int, until: int) -> None:
+        inputs = self._inbox[name]
+        self._inbox[name] = []
+        handle.post_advance(start, until, inputs)
+        self._pending[name].append((until, inputs))
+        self._posted_to[name] = until
+        self.exchanges += 1
+
+    def _collect(self, name: str, handle: Any, upto: int) -> None:
+        """Wait for a board's posted quanta ending at or before ``upto`` and route what they
+        sent (pipelined mode)."""
+        pending = self._pending[name]
+        while pending and pending[0][0] <= upto and name not in self.dead:
+            until, inputs = pending.pop(0)
+            try:
+                outputs, self._next_ns[name] = handle.wait_advance()
+            except BoardDied as died:
+                pending.clear()
+                self._board_died(name, died.detail, until)
+                return
+            if self._trace is not None:
+                self._trace.write(name, until, inputs, outputs)
+            if outputs:
+                self._route_all(name, outputs)
+                if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
+                    self._reboot_pending.append(name)
+
+    def _drain(self, name: str) -> None:
+        """Pipelined mode: finish every quantum already handed to this board (before a
+        control call, so that the board is not running while it is asked something)."""
+        if self._pending[name]:
+            self._collect(name, self.handles[name], self._pending[name][-1][0])
 
     def _route_all(self, board: str, records: list) -> None:
         """:meth:`_route` for a list of records (the per-quantum path, inlined)."""
@@ -292,11 +380,14 @@ class Orchestrator:
         self.handles[name] = _OffsetHandle(inner, self.t_ns)
         self._inbox[name] = []
         self._next_ns[name] = 0
+        self._pending[name] = []
+        self._posted_to[name] = self.t_ns
         self.reboots[name] = self.reboots.get(name, 0) + 1
         self.log(f"hil: board {name} rebooted at t={self.t_ns / 1e9:.6f} s")
 
     def _board_died(self, name: str, detail: str, t_ns: int) -> None:
         self.dead[name] = detail
+        self._pending[name] = []
         self.log(f"hil: board {name} died at t={t_ns / 1e9:.6f} s: {detail}")
         handle = self.handles[name]
         # A dead chip's outputs: UARTs fall silent (nothing more is sent), PWM pins stop
@@ -417,7 +508,11 @@ class Orchestrator:
         if board in self.dead:
             raise BoardDied(board, self.dead[board])
         handle = self.handles[board]
-        if self._started and self.t_ns > 0:
+        if self.pipeline:
+            self._drain(board)  # the board may be a quantum ahead of t_ns: it answers from there
+            if board in self.dead:
+                raise BoardDied(board, self.dead[board])
+        elif self._started and self.t_ns > 0:
             handle.post_advance(self.t_ns, self.t_ns, [])
             _, self._next_ns[board] = handle.wait_advance()
         result = handle.call(method, *args)

@@ -52,6 +52,7 @@ class SystemConfig:
     telem_pty: bool = False           # TELEM1/TELEM2 bridged to host pseudo-terminals
     gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
+    pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -124,5 +125,5 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
             devices["udp"] = bridge_dev
             wiring += udp_wires(bridge_dev.port)
     orch = Orchestrator(boards, wiring, world=hub, quantum_ns=cfg.quantum_ns, mode=cfg.mode,
-                        speed=cfg.speed, trace_path=cfg.trace_path)
+                        speed=cfg.speed, trace_path=cfg.trace_path, pipeline=cfg.pipeline)
     return orch, devices
