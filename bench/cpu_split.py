@@ -2,8 +2,9 @@
 
 Runs the flight one-process (``mode="local"``) and charges the process CPU time of each
 board's quantum to that board; the rest is the world, the orchestrator and the ground station.
-CPU time, unlike wall time, hardly moves when other work shares the machine, so this is the
-number to watch while optimising a board. ``python -m bench.cpu_split [--duration S]``.
+CPU time moves less than wall time when other work shares the machine (though a busy
+neighbour still slows a core by 10-30 % here), so this is the number to watch while optimising
+a board. ``python -m bench.cpu_split [--pipeline]``.
 """
 
 from __future__ import annotations
@@ -19,8 +20,7 @@ from hil.flight import FlightConfig, fly
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--duration", type=float, default=None,
-                    help="stop after this many virtual seconds (default: the whole flight)")
+    ap.add_argument("--pipeline", action="store_true", help="lookahead lockstep")
     args = ap.parse_args()
     spent: collections.Counter[str] = collections.Counter()
     orig = LocalHandle.post_advance
@@ -32,9 +32,7 @@ def main() -> None:
         spent[self.name] += clock() - t0
 
     LocalHandle.post_advance = post_advance  # type: ignore[method-assign]
-    cfg = dict(mode="local", progress=False, plot=False)
-    if args.duration:
-        cfg["duration_s"] = args.duration
+    cfg = dict(mode="local", progress=False, plot=False, pipeline=args.pipeline)
     t0 = clock()
     with tempfile.TemporaryDirectory() as out:
         summary = fly(FlightConfig(out_dir=out, **cfg))
