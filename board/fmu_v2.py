@@ -395,6 +395,23 @@ class FmuV2Board(Board):
         hog.schedule_on_interval(period_us)
         hogs[wq] = hog
 
+    def sensor_rail_devices(self) -> list[str]:
+        """The chips on VDD_3V3_SENSORS (switched by PE3): every SPI1 device."""
+        return [d.name for b in self.spec.spi if b.name == "SPI1" for d in b.devices
+                if d.name in self.devices]
+
+    def ctl_sensor_rail(self, on: bool) -> list[str]:
+        """The FMU's sensor 3.3 V rail (VDD_3V3_SENSORS, enabled by PE3) sags (``False``) or
+        comes back (``True``): every chip on it loses its supply (no samples, no data-ready,
+        MISO left to its pull-up, so reads give 0xFF) and, when the rail returns, goes through
+        its power-on reset: registers at reset values, the MPU6000 deaf for 100 ms, the ST
+        chips rebooted, the MS5611 reloading its PROM. Returns the chips switched."""
+        names = self.sensor_rail_devices()
+        for name in names:
+            self.devices[name].set_power(bool(on))
+        self.sensor_rail_on = bool(on)
+        return names
+
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)
 

@@ -52,6 +52,7 @@ class ImuErrorModel:
         # Extra errors a test or a fault sets: a bias step, stuck output, saturation.
         self.extra_bias = (0.0, 0.0, 0.0)
         self.noise_scale = 1.0
+        self.extra_sigma = 0.0      # extra white noise per sample (a noise-burst fault), SI
         # Normal draws as a Python list: indexing a list is several times cheaper than slicing
         # a numpy array, and the values are the same doubles (drawn in the same blocks).
         self._buf: list[float] = []
@@ -84,6 +85,8 @@ class ImuErrorModel:
         vy = c1[0] * x + sy * y + c1[2] * z
         vz = c2[0] * x + c2[1] * y + sz * z
         sigma = p.noise_density * math.sqrt(odr_hz * 0.5) * self.noise_scale
+        if self.extra_sigma:
+            sigma = math.hypot(sigma, self.extra_sigma)
         d = self.drift
         last_t = self._last_t_ns
         if p.bias_instability and last_t is not None:

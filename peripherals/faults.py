@@ -3,7 +3,9 @@
 Faults act where they happen on a real board: the chip answers a wrong ID, its data freezes or
 turns to noise, it drops off the bus (an SPI chip that no longer drives MISO reads 0xFF; an I2C
 chip stops ACKing), it stops raising data-ready, it saturates, or its output gains a bias step (the FMU board ramps
-it for a drift, ``FmuV2Board.ctl_sensor_drift``), or a memory stops taking writes.
+it for a drift, ``FmuV2Board.ctl_sensor_drift``), or a memory stops taking writes; its output
+gains extra noise (``noise``), its FIFO overflows on every read (``fifo_overflow``), or its
+identity goes wrong at its next reset (``wrong_id_after_reset``).
 The driver must notice what a PX4 driver would notice; the model never tells it.
 """
 
@@ -24,6 +26,13 @@ class FaultState:
     saturate: bool = False          # every axis reads its positive full scale
     bias_step: tuple[float, float, float] = (0.0, 0.0, 0.0)  # added in SI units
     write_fail: bool = False        # a memory's write enable never latches (FRAM: WREN ignored)
+    #: extra white noise on the chip's output: output name ("gyro", "accel", "mag", "pressure")
+    #: -> sigma per sample per axis in SI units (rad/s, m/s^2, gauss, Pa); None: off
+    noise: dict[str, float] | None = None
+    fifo_overflow: bool = False     # the FIFO fills faster than it is read (MPU6000)
+    #: the identity register reads this value after the next reset or power-on (a part that
+    #: comes back wrong from a reset); None: off
+    wrong_id_after_reset: int | None = None
 
     def clear(self) -> None:
         self.__init__()  # type: ignore[misc]

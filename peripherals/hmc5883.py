@@ -257,6 +257,8 @@ class Hmc5883(I2cTarget):
             x, z, y = (int(v) for v in self.rng.integers(-2048, 2048, 3))
             self._last_counts = (x, z, y)
             return self._last_counts
+        nz = f.noise
+        self.errors.extra_sigma = nz.get("mag", 0.0) if nz else 0.0
         field = self.errors.apply(t_ns, self.env.mag_gauss, odr_hz=2.0)  # sigma = noise floor
         ms = self.regs.get("CRA.MS")
         sign = 1.0 if ms == 1 else -1.0 if ms == 2 else 0.0

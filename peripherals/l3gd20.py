@@ -166,6 +166,8 @@ class L3gd20(StSpiTarget):
             env = self.env
             err = self.errors
             err.extra_bias = faults.bias_step
+            nz = faults.noise
+            err.extra_sigma = nz.get("gyro", 0.0) if nz else 0.0
             rot = self.rotation
             w = err.apply(t_ns, env.gyro_rad_s if rot is None else rotate(rot, env.gyro_rad_s),
                           self.ch.odr_mhz / 1000, env.board_temperature_c)

@@ -240,6 +240,8 @@ class Lsm303d(StSpiTarget):
             ctrl2 = self.regs.values[0x21]
             bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> 6])  # CTRL2.ABW
             err.extra_bias = faults.bias_step
+            nz = faults.noise
+            err.extra_sigma = nz.get("accel", 0.0) if nz else 0.0
             rot = self.rotation
             a = err.apply(t_ns, env.accel_m_s2 if rot is None else rotate(rot, env.accel_m_s2),
                           2.0 * bw, env.board_temperature_c)
@@ -266,6 +268,8 @@ class Lsm303d(StSpiTarget):
         else:
             env, err = self.env, self.mag_errors
             err.extra_bias = faults.bias_step
+            nz = faults.noise
+            err.extra_sigma = nz.get("mag", 0.0) if nz else 0.0
             err.noise_scale = 1.0 if regs.get("CTRL5.M_RES") == 3 else 2.0
             b = err.apply(t_ns, rotate(self.rotation, env.mag_gauss), self.mag.odr_mhz / 1000,
                           env.board_temperature_c)

@@ -192,6 +192,7 @@ class Ms5611(SpiTarget):
         self.early_reads = 0
         self._reset_until_ns = -1
         self._conv_entry: list | None = None
+        self.powered = True
         self._conv_end_ns = -1
         self._conv_kind = 0       # 1 = D1, 2 = D2
         self._conv_osr = 0
@@ -215,6 +216,18 @@ class Ms5611(SpiTarget):
     def converting(self) -> bool:
         return self._conv_entry is not None and self._conv_entry[3] is not None
 
+    def set_power(self, on: bool) -> None:
+        """The supply rail: off, conversions stop and MISO floats high; on is a power-on reset
+        (the PROM reloads for 2.8 ms, as after RESET)."""
+        if on and not self.powered:
+            self.powered = True
+            self._do_reset(self.kernel.context_ns)
+        elif not on and self.powered:
+            self.powered = False
+            self.kernel.cancel(self._conv_entry)
+            self._conv_entry = None
+            self._result = None
+
     def power_cycle(self, t_ns: int | None = None) -> None:
         """Sensor rail off and on (PX4's SPI1 bus reset): as after a RESET command."""
         self._do_reset(self.kernel.context_ns if t_ns is None else t_ns)
@@ -227,7 +240,7 @@ class Ms5611(SpiTarget):
         self._pos = 0
 
     def _exchange(self, t_ns: int, tx: bytes) -> bytes:
-        if self.faults.absent:
+        if self.faults.absent or not self.powered:
             return b"\xff" * len(tx)
         rx = bytearray(len(tx))
         start = 0
@@ -336,6 +349,9 @@ class Ms5611(SpiTarget):
         temp = env.board_temperature_c + bias[1]
         self.pressure_errors.sigma = p_sigma
         pressure = self.pressure_errors.apply(env.pressure_pa) + bias[0]
+        nz = self.faults.noise
+        if nz and nz.get("pressure"):
+            pressure += nz["pressure"] * float(self.rng.standard_normal())
         return raw_from_physical(self.prom, pressure, temp)[0]
 
     def __repr__(self) -> str:

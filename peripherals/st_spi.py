@@ -327,6 +327,8 @@ class StSpiTarget(SpiTarget):
         self.name = name
         self.rng = rng
         self.faults = FaultState()
+        #: the supply (FMUv2: the sensor rail switched by PE3); off, nothing drives MISO
+        self.powered = True
         self._data_addrs = data_addrs
         self._cmd: int | None = None
         self._addr = 0
@@ -350,7 +352,7 @@ class StSpiTarget(SpiTarget):
 
     def _exchange(self, t_ns: int, tx: bytes) -> bytes:
         faults = self.faults
-        if faults.absent:
+        if faults.absent or not self.powered:
             return b"\xff" * len(tx)
         self._t = t_ns
         self._service(t_ns)
@@ -505,6 +507,18 @@ class StSpiTarget(SpiTarget):
     def _boot_done(self) -> None:
         self._boot_event = None
         self.reset()
+
+    def set_power(self, on: bool) -> None:
+        """The supply rail: off, the chip stops (no samples, no pin events, MISO left to its
+        pull-up); on is a power-on reset (registers to their reset values, BOOT done)."""
+        if on and not self.powered:
+            self.powered = True
+            self.reset()
+        elif not on and self.powered:
+            self.powered = False
+            self._arm(None)
+            Kernel.cancel(self._boot_event)
+            self._boot_event = None
 
     def reset(self) -> None:
         """Power-on reset (sensor rail cycled, or the end of a BOOT sequence)."""

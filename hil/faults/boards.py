@@ -170,3 +170,23 @@ def cpu_overload(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> An
 def _cpu_overload_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                        token: Any) -> None:
     board_call(rig, "board.cpu_overload", "fmu", "cpu_load", target, 0.0)
+
+
+@fault_kind("board.sensor_rail_brownout", level="board", targets=("fmu",),
+            doc="The FMU's sensor 3.3 V rail (VDD_3V3_SENSORS, switched by PE3 on FMUv2) sags "
+                "below the chips' brown-out level while the fault lasts (a short on a sensor "
+                "lead, an overloaded regulator): every chip on it (MPU6000, L3GD20, LSM303D, "
+                "MS5611; not the GPS module's compass nor the FRAM) loses power, its SPI "
+                "reads give 0xFF, its data-ready lines stop; when the rail returns each goes "
+                "through its power-on reset. PX4's drivers see the 0xFF answers and lost "
+                "configuration, reset and re-initialise their chips; the sensors come back "
+                "after the rail with a gap of about 100-200 ms (the MPU6000's 100 ms reset).")
+def sensor_rail_brownout(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    _check_running(rig.orch, target, "board.sensor_rail_brownout")
+    return board_call(rig, "board.sensor_rail_brownout", "fmu", "sensor_rail", False)
+
+
+@sensor_rail_brownout.stopper
+def _sensor_rail_back(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                      token: Any) -> None:
+    board_call(rig, "board.sensor_rail_brownout", "fmu", "sensor_rail", True)

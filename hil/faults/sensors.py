@@ -116,3 +116,74 @@ def bias_drift(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> Any:
 def _bias_drift_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
                      token: Any) -> None:
     board_call(rig, "sensor.bias_drift", "fmu", "sensor_drift", target, (0.0, 0.0, 0.0))
+
+
+#: each chip's outputs a noise burst can act on, the default first (SI units: rad/s, m/s^2,
+#: gauss, Pa)
+NOISE_OUTPUTS = {"mpu6000": ("accel", "gyro"), "l3gd20": ("gyro",), "lsm303d": ("accel", "mag"),
+                 "ms5611": ("pressure",), "hmc5883": ("mag",)}
+
+
+@fault_kind("sensor.noise_burst", level="sensor", targets=SENSORS, sigma=3.0, output="",
+            doc="Extra white noise of standard deviation ``sigma`` (SI units per sample and "
+                "axis: m/s^2, rad/s, gauss, Pa) on one of the chip's outputs (``output``: "
+                "accel/gyro for the MPU6000, gyro for the L3GD20, accel/mag for the LSM303D, "
+                "pressure, mag; default the first) while it lasts: vibration from a damaged "
+                "propeller or a loose mount, EMI from a power lead, a marginal supply. The "
+                "readings stay plausible sample by sample, so the driver sees nothing; the "
+                "sensors module's inconsistency between redundant IMUs grows (PX4: 'Accels "
+                "inconsistent' at COM_ARM_IMU_ACC refuses arming) and the estimator's "
+                "innovations widen. A burst shorter than the voter's one-second persistence "
+                "causes no failover.")
+def noise_burst_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
+    from hil.faults import FaultError
+    from hil.faults._rig import number
+
+    outputs = NOISE_OUTPUTS[target]
+    output = params["output"] or outputs[0]
+    if output not in outputs:
+        raise FaultError(f"fault sensor.noise_burst: {target} has no output {output!r} "
+                         f"(outputs: {', '.join(outputs)})")
+    sigma = number(params, "sigma", "sensor.noise_burst", 0.0, 1e6)
+    _set(rig, target, "noise", {output: sigma})
+
+
+@noise_burst_start.stopper
+def noise_burst_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
+                     token: Any) -> None:
+    _set(rig, target, "noise", None)
+
+
+@fault_kind("sensor.fifo_overflow", level="sensor", targets=("mpu6000",),
+            doc="The MPU6000's FIFO fills faster than the driver reads it, so at every read "
+                "it holds 1024 bytes and has overflowed (FIFO_OFLOW, the oldest bytes lost "
+                "and the 12-byte records misaligned): an overrun sample clock, or in practice "
+                "a driver starved of its work queue. PX4's driver sees the FIFO count at 1024, "
+                "counts 'FIFO overflow' (perf and error_count) and resets the FIFO; sustained, "
+                "no valid data is published, and the voter fails over to the second IMU.")
+def fifo_overflow_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
+    _set(rig, target, "fifo_overflow", True)
+
+
+@fifo_overflow_start.stopper
+def fifo_overflow_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
+                       token: Any) -> None:
+    _set(rig, target, "fifo_overflow", False)
+
+
+@fault_kind("sensor.wrong_id_after_reset", level="sensor", targets=("mpu6000",), value=0x00,
+            doc="The chip answers correctly until it is reset (PWR_MGMT_1 DEVICE_RESET from "
+                "the driver, or a power cycle of the sensor rail): from then on WHO_AM_I reads "
+                "``value`` (a part damaged by a brown-out or ESD whose fuses reload wrong). "
+                "Nothing shows until a reset; then PX4's driver fails its identity check on "
+                "every reset ('reset failed'), never re-probes the chip and the sensor is lost "
+                "(the voter fails over). Stopping the fault makes the next reset good again.")
+def wrong_id_after_reset_start(rig: Any, target: str, params: dict[str, Any],
+                               t_ns: int) -> None:
+    _set(rig, target, "wrong_id_after_reset", int(params["value"]) & 0xFF)
+
+
+@wrong_id_after_reset_start.stopper
+def wrong_id_after_reset_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
+                              token: Any) -> None:
+    _set(rig, target, "wrong_id_after_reset", None)

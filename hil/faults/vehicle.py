@@ -152,3 +152,43 @@ def mag_interference(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -
 def _mag_interference_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                            token: Any) -> None:
     world(rig, "vehicle.mag_interference").mag_disturbance = token
+
+
+@fault_kind("vehicle.geofence_breach", level="vehicle", targets=("pilot", "wind"), stick=0.6,
+            speed_m_s=8.0, bearing_deg=0.0,
+            doc="The vehicle is carried beyond its geofence (GF_MAX_HOR_DIST / GF_MAX_VER_DIST "
+                "from home) the way it happens in the field. Target ``pilot``: the pilot "
+                "holds the pitch stick forward (``stick``, -1..1) in a manual mode and flies "
+                "out, the classic geofence test; it acts on the transmitter, so the FMU sees "
+                "only RC channels. Target ``wind``: a steady wind of ``speed_m_s`` towards "
+                "``bearing_deg`` (from north, clockwise) pushes a vehicle flying without "
+                "position hold (Altitude, Stabilized) downwind. PX4's geofence check (the "
+                "estimator's position, or GPS with GF_SOURCE 1) trips at the boundary and "
+                "the commander takes GF_ACTION: warning, Hold, Return, Terminate or Land. "
+                "Stopping it centres the stick or calms the wind. (PX4 rejects missions and "
+                "GCS repositions beyond the fence, so neither is a way out.)")
+def geofence_breach(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    import math
+
+    name = "vehicle.geofence_breach"
+    if target == "pilot":
+        stick = number(params, "stick", name, -1.0, 1.0)
+        rc = rig.dev.get("rc")
+        if rc is None:
+            raise FaultError(f"fault {name}: target pilot needs an RC transmitter "
+                             f"(SystemConfig rc=None)")
+        rc.tx.set_sticks(t_ns, pitch=stick, ramp_ns=200_000_000)
+        return None
+    speed = number(params, "speed_m_s", name, 0.0, 60.0)
+    bearing = math.radians(number(params, "bearing_deg", name, -360.0, 360.0))
+    world(rig, name).set_wind(speed * math.cos(bearing), speed * math.sin(bearing), 0.0)
+    return None
+
+
+@geofence_breach.stopper
+def _geofence_breach_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                          token: Any) -> None:
+    if target == "pilot":
+        rig.dev["rc"].tx.set_sticks(t_ns, pitch=0.0, ramp_ns=200_000_000)
+    else:
+        world(rig, "vehicle.geofence_breach").set_wind(0.0, 0.0, 0.0)

@@ -126,6 +126,7 @@ class Mpu6000(SpiTarget):
             self_test_response(self_test_trim), rev_c=product_id in REV_C_IDS)
         self.fifo = bytearray()
         self._fifo_last = 0
+        self._id_after_reset: int | None = None
         self._count_latch = 0
         #: Samples produced since power-on (lazily, see module docstring).
         self.samples_produced = 0
@@ -227,6 +228,8 @@ class Mpu6000(SpiTarget):
 
     def _read_who_am_i(self, value: int) -> int:
         wrong = self.faults.wrong_id
+        if wrong is None:
+            wrong = self._id_after_reset
         return value if wrong is None else wrong & 0xFF
 
     # -- power and reset ------------------------------------------------------------------------
@@ -236,6 +239,8 @@ class Mpu6000(SpiTarget):
         self.regs.reset()
         self.fifo.clear()
         self._fifo_last = 0
+        # A part whose identity comes back wrong from a reset (FaultState.wrong_id_after_reset)
+        self._id_after_reset = self.faults.wrong_id_after_reset
         self.engine.reset_filters()
         self._ready_ns = t_ns + RESET_TIME_NS
         self._retime()
@@ -297,6 +302,10 @@ class Mpu6000(SpiTarget):
         v[DATA_FIRST:DATA_FIRST + 14] = rows
         if record:
             self._fifo_push(record)  # sets FIFO_OFLOW_INT when the oldest bytes are lost
+            if self.faults.fifo_overflow:
+                # The FIFO fills faster than the sample clock: by the next look it is full
+                # and has overflowed (the oldest bytes lost, records misaligned).
+                self._fifo_push(record * (FIFO_SIZE // len(record) + 1))
         v[_INT_STATUS] |= _DATA_RDY_INT
 
     # -- FIFO -----------------------------------------------------------------------------------

@@ -168,6 +168,9 @@ class SampleEngine:
         lg = self._lsb_g
         gerr = self.gyro_err
         sg = gerr.p.noise_density * self._sigma_g * gerr.noise_scale * lg
+        extra = faults.noise  # a noise burst (FaultState.noise): sigma in SI per sample
+        if extra:
+            sg = math.hypot(sg, extra.get("gyro", 0.0) * lg)
 
         # Accelerometer: a new reading per 1 ms tick, repeated in between. Its draws follow
         # the gyro's 3 * m in the block (computed first here, drawn in that order as always).
@@ -197,6 +200,8 @@ class SampleEngine:
                     la = self._lsb_a
                     aerr = self.accel_err
                     na = aerr.p.noise_density * self._sigma_a * aerr.noise_scale * la
+                    if extra:
+                        na = math.hypot(na, extra.get("accel", 0.0) * la)
                 pa = self._a_a ** (tick - t_prev) if tick > t_prev else 1.0
                 sa = (xa[0] + pa * (sa[0] - xa[0]), xa[1] + pa * (sa[1] - xa[1]),
                       xa[2] + pa * (sa[2] - xa[2]))

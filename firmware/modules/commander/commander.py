@@ -21,6 +21,7 @@ from firmware.modules.commander import failsafe as fs
 from firmware.modules.commander import modes
 from firmware.modules.commander.checks import Failure, VehicleData, preflight_failures
 from firmware.modules.commander.commands import CommandHandler
+from firmware.modules.commander.geofence import GEOFENCE_PARAMS, Geofence
 from firmware.modules.commander.params import PARAMS
 from firmware.platform.module import WorkItemModule
 
@@ -61,7 +62,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
     WQ = "wq:hp_default"
     INTERVAL_US = 10_000
     CPU_COST_NS = 150_000
-    PARAMS = PARAMS
+    PARAMS = PARAMS + GEOFENCE_PARAMS
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
@@ -86,6 +87,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.dl_lost_count = 0
         self.battery_warning = 0
         self.home_valid = False
+        self.geofence = Geofence(self)
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -119,7 +121,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._load_params()
 
     def _load_params(self) -> None:
-        self.p = {d.name: self.param(d.name) for d in PARAMS}
+        self.p = {d.name: self.param(d.name) for d in self.PARAMS}
         self.rc_loss_us = int(self.p["COM_RC_LOSS_T"] * 1e6)
         self.dl_loss_us = int(self.p["COM_DL_LOSS_T"]) * 1_000_000
         params = self.system.params
@@ -305,6 +307,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
                     in_air):
             self.error(f"Failsafe: no connection to ground station, "
                        f"{fs.ACTION_NAMES_LOWER[f.causes['datalink'].action]}")
+        self.geofence.update(now, in_air)
         level = self.battery_warning
         if f.update("battery", level >= 2, fs.battery_action(int(p["COM_LOW_BAT_ACT"]), level),
                     now, in_air, level):
