@@ -44,7 +44,8 @@ def _sensor(dev: int) -> dict[str, Any]:
 
 def healthy_inputs() -> dict[str, dict[str, Any]]:
     return {
-        "sensors_status_imu": _sensor(1), "sensors_status_baro": _sensor(2),
+        "sensors_status_imu": _sensor(1), "sensors_status_imu#1": _sensor(1),
+        "sensors_status_baro": _sensor(2),
         "sensors_status_mag": _sensor(3),
         "estimator_status": {},
         "vehicle_local_position": {"xy_valid": True, "z_valid": True, "v_xy_valid": True,
@@ -98,9 +99,10 @@ class Rig:
     def set(self, topic: str, **fields: Any) -> None:
         """Change fields of a published input (and resume publishing it)."""
         msg = self.msgs.get(topic)
-        if msg is None:
-            msg = self.msgs[topic] = self.orb.new(topic)
-            self.pubs[topic] = self.orb.advertise(topic)
+        if msg is None:  # "topic#n": instance n
+            name, _, inst = topic.partition("#")
+            msg = self.msgs[topic] = self.orb.new(name)
+            self.pubs[topic] = self.orb.advertise(name, int(inst or 0))
         for k, v in fields.items():
             setattr(msg, k, list(v) if isinstance(v, list) else v)
         self.stopped.discard(topic)
@@ -180,9 +182,12 @@ def _break(rig: Rig, what: str) -> None:
     if what == "imu_missing":
         rig.orb.node("sensors_status_imu").last = None
         rig.stop("sensors_status_imu")
-    elif what == "accel_inconsistent":
-        rig.set("sensors_status_imu", device_ids=[1, 5, 0, 0], enabled=[True, True, False, False],
-                inconsistency=[0.1, 1.5, 0.0, 0.0])
+    elif what == "accel_inconsistent":  # instance 1 of sensors_status_imu: the accels
+        rig.set("sensors_status_imu#1", device_ids=[1, 5, 0, 0],
+                enabled=[True, True, False, False], inconsistency=[0.1, 1.5, 0.0, 0.0])
+    elif what == "gyro_inconsistent":  # instance 0: the gyros, against COM_ARM_IMU_GYR
+        rig.set("sensors_status_imu", device_ids=[1, 5, 0, 0],
+                enabled=[True, True, False, False], inconsistency=[0.01, 0.3, 0.0, 0.0])
     elif what == "baro_unhealthy":
         rig.set("sensors_status_baro", healthy=[False, False, False, False])
     elif what == "estimator_fault":
@@ -208,6 +213,7 @@ def _break(rig: Rig, what: str) -> None:
 @pytest.mark.parametrize("what, reason", [
     ("imu_missing", "Accel/Gyro Sensor missing"),
     ("accel_inconsistent", "Accels inconsistent"),
+    ("gyro_inconsistent", "Gyros inconsistent"),
     ("baro_unhealthy", "Baro Sensor 0 unhealthy"),
     ("estimator_fault", "estimator numerical fault"),
     ("no_gps", "no GPS"),

@@ -51,7 +51,8 @@ class VehicleData:
         self.gps = sub("sensor_gps")
         self.land = sub("vehicle_land_detected")
         self.estimator = sub("estimator_status")
-        self.imu = sub("sensors_status_imu")
+        self.imu = sub("sensors_status_imu")            # instance 0: the gyros
+        self.imu_accel = sub("sensors_status_imu", 1)   # instance 1: the accelerometers
         self.baro = sub("sensors_status_baro")
         self.mag = sub("sensors_status_mag")
         self.io = sub("px4io_status")
@@ -118,7 +119,12 @@ class VehicleData:
         return newest > 0 and now - newest <= timeout_us
 
 
-def _sensor_failures(data: VehicleData, acc_max: float) -> list[Failure]:
+def _worst_inconsistency(m: Any) -> float:
+    return max((m.inconsistency[i] for i in range(4) if m.device_ids[i] and m.enabled[i]),
+               default=0.0)
+
+
+def _sensor_failures(data: VehicleData, acc_max: float, gyr_max: float) -> list[Failure]:
     out: list[Failure] = []
     for sub, what in ((data.imu, "Accel/Gyro"), (data.baro, "Baro"), (data.mag, "Compass")):
         m = sub.node.last
@@ -130,12 +136,20 @@ def _sensor_failures(data: VehicleData, acc_max: float) -> list[Failure]:
                 if not m.healthy[i]:
                     out.append(Failure(True, f"Preflight Fail: {what} Sensor {i} unhealthy"))
                 break
-        if sub is data.imu:
-            worst = max((m.inconsistency[i] for i in range(4)
-                         if m.device_ids[i] and m.enabled[i]), default=0.0)
-            if worst > acc_max:
-                out.append(Failure(True, f"Preflight Fail: Accels inconsistent "
-                                         f"({worst:.2f} m/s^2) - Check Cal"))
+    # PX4's consistency checks between redundant IMUs: the voter's inconsistency of each
+    # unit against the selected one, accels against COM_ARM_IMU_ACC, gyros COM_ARM_IMU_GYR.
+    accels = data.imu_accel.node.last
+    if accels is not None:
+        worst = _worst_inconsistency(accels)
+        if worst > acc_max:
+            out.append(Failure(True, f"Preflight Fail: Accels inconsistent ({worst:.2f} m/s^2)"
+                                     f" - Check Cal"))
+    gyros = data.imu.node.last
+    if gyros is not None and gyros.device_id_primary:
+        worst = _worst_inconsistency(gyros)
+        if worst > gyr_max:
+            out.append(Failure(True, f"Preflight Fail: Gyros inconsistent ({worst:.2f} rad/s)"
+                                     f" - Check Cal"))
     return out
 
 
@@ -159,7 +173,7 @@ def _estimator_failures(data: VehicleData) -> list[Failure]:
 def preflight_failures(cmd: CommanderModule, nav_state: int, now: int) -> list[Failure]:
     """Every reason arming in ``nav_state`` would be refused now (empty: ready to arm)."""
     data, p = cmd.data, cmd.p
-    out = _sensor_failures(data, p["COM_ARM_IMU_ACC"])
+    out = _sensor_failures(data, p["COM_ARM_IMU_ACC"], p["COM_ARM_IMU_GYR"])
     out += _estimator_failures(data)
     req = modes.REQUIREMENTS.get(nav_state, frozenset())
     mode = modes.NAV_NAMES.get(nav_state, str(nav_state))

@@ -56,6 +56,8 @@ PARAMS: tuple[ParamDef, ...] = (
              values={0: "Disabled", 1: "Safety button", 2: "Always"}),
     ParamDef("COM_ARM_IMU_ACC", "FLOAT", 0.7, min=0.1, max=1.0, unit="m/s^2", group=_C,
              decimals=2, short="Maximum accelerometer inconsistency between IMU units"),
+    ParamDef("COM_ARM_IMU_GYR", "FLOAT", 0.25, min=0.02, max=0.3, unit="rad/s", group=_C,
+             decimals=3, short="Maximum rate gyro inconsistency between IMU units"),
     ParamDef("COM_POS_FS_EPH", "FLOAT", 5.0, min=-1.0, max=400.0, unit="m", group=_C,
              decimals=1, short="Horizontal position error threshold",
              long="A position estimate less accurate than this is not valid for position "
