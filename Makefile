@@ -16,8 +16,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/hil run
 
+# Two passes: everything but the wall-clock-paced tests, spread over the cores (pytest-xdist),
+# then the paced ones alone, so that no other test takes the CPU they need to keep pace.
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto -m "not paced"
+	$(PY) -m pytest -q -m paced
 
 bench: $(STAMP)
 	$(VENV)/bin/hil bench

@@ -37,7 +37,7 @@ _mission = importlib.import_module(f"{mavsdk.__name__}.mission")
 MissionItem, MissionPlan, MissionError = (_mission.MissionItem, _mission.MissionPlan,
                                           _mission.MissionError)
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.paced]
 
 M_PER_DEG_LAT = 111_132.954
 ALT_M = 10.0

@@ -33,7 +33,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 from pymavlink.generator.mavcrc import x25crc
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.paced]
 
 MAV = mavutil.mavlink
 ALT_M = 10.0

@@ -165,6 +165,7 @@ def test_dead_board_pwm_goes_low_for_the_world():
 
 
 @pytest.mark.slow
+@pytest.mark.paced
 def test_paced_mode_keeps_virtual_time_within_5_percent_of_wall_time():
     specs = {"fmu": BoardSpec("board.stock:EmptyBoard", {"tick_us": 1000}),
              "io": BoardSpec("board.stock:EmptyBoard", {"tick_us": 1000})}
