@@ -393,10 +393,12 @@ class Runner:
         self.injector.stop(self.faults[step.arg])
 
     def _do_shell(self, step: Step) -> None:
-        status, out = self.orch.call("fmu", "shell", step.arg)
-        self.say(f"t={self.orch.t_ns / NS:.3f} s: nsh> {step.arg}: {out.strip()}")
-        if status != 0:
-            raise ScenarioError(f"nsh command {step.arg!r} failed ({status}): {out.strip()}")
+        line = step.arg["run"]
+        status, out = self.orch.call("fmu", "shell", line)
+        self.sampler.shell = {"status": status, "output": out}
+        self.say(f"t={self.orch.t_ns / NS:.3f} s: nsh> {line}: {out.strip()}")
+        if status != 0 and not step.arg["may_fail"]:
+            raise ScenarioError(f"nsh command {line!r} failed ({status}): {out.strip()}")
 
     def _do_ready(self, step: Step) -> None:
         """Wait for a 3D fix and a home position, then press the safety switch, as a pilot

@@ -277,9 +277,18 @@ def _step(i: int, raw: Any) -> Step:
             raise ScenarioError(f"{w}: the name of a fault started earlier")
         arg = val
     elif kind == "shell":
+        # "cmd" or {run: "cmd", may_fail: true} (a command whose failure is the point, e.g. a
+        # parameter save to a broken FRAM: its status is the observable shell.status)
+        may_fail = False
+        if isinstance(val, dict):
+            _only(val, {"run", "may_fail"}, w)
+            may_fail = val.get("may_fail", False)
+            if not isinstance(may_fail, bool):
+                raise ScenarioError(f"{w}.may_fail: true or false")
+            val = val.get("run")
         if not isinstance(val, str) or not val.strip():
             raise ScenarioError(f"{w}: an nsh command line")
-        arg = val
+        arg = {"run": val, "may_fail": may_fail}
     elif kind == "ready":
         arg = {"within": _num((val or {}).get("within", 60) if isinstance(val, dict) else
                               (val if val is not None else 60), w)}

@@ -46,6 +46,8 @@ class Sampler:
         self._texts_seen = 0
         self._last_seen = ""
         self.home_ned: tuple[float, float] = (0.0, 0.0)
+        #: the last ``shell`` step's exit status and output (set by the engine)
+        self.shell: dict[str, Any] | None = None
 
     def new_sample(self) -> None:
         self._cache.clear()
@@ -122,6 +124,8 @@ class Sampler:
             value = self._generic_topic(base)
         elif base.startswith("gcs.result."):
             value = self.gcs_results.get(base[len("gcs.result."):])
+        elif base.startswith(GCS_RATE):
+            value = _gcs_rate(self, base[len(GCS_RATE):])
         else:
             raise KeyError(name)
         if index is not None and value is not None:
@@ -160,6 +164,8 @@ def is_observable(name: str) -> bool:
     if base.startswith("topic."):
         parts = base.split(".")
         return len(parts) in (3, 4) and all(parts[1:])
+    if base.startswith(GCS_RATE):
+        return len(base) > len(GCS_RATE)
     return base.startswith("gcs.result.") and len(base) > len("gcs.result.")
 
 
@@ -222,6 +228,41 @@ def _tilt_deg(s: Sampler) -> float:
 def _on_ground(s: Sampler) -> bool:
     t = s.truth()
     return t.agl_m < 0.3 and math.sqrt(sum(v * v for v in t.vel_ned_m_s)) < 0.3
+
+
+#: ``gcs.rate_hz.<MESSAGE>``: how many of a MAVLink message the GCS received in the last
+#: virtual second (a stream's rate as the ground sees it)
+GCS_RATE = "gcs.rate_hz."
+
+
+def _gcs_rate(s: Sampler, mtype: str) -> Any:
+    gcs = s.dev.get("gcs")
+    if gcs is None:
+        return None
+    import bisect
+
+    now = s.orch.t_ns
+    if now < 1_000_000_000:
+        return None  # not a whole second of history yet
+    log = gcs.log
+    start = bisect.bisect_right(log, now - 1_000_000_000, key=lambda e: e[0])
+    return sum(1 for _, m in log[start:] if m.get_type() == mtype)
+
+
+def _imu_latency_us(s: Sampler) -> Any:
+    m = s.topic("sensor_gyro")
+    return None if m is None else m["timestamp"] - m["timestamp_sample"]
+
+
+def _mavlink_rx_lost(s: Sampler) -> Any:
+    links = s._call("fmu", "mavlink")
+    if not links:
+        return None
+    return sum(int(d.get("rx_lost", 0)) for d in links)
+
+
+def _shell(key: str) -> Callable[[Sampler], Any]:
+    return lambda s: None if s.shell is None else s.shell[key]
 
 
 #: name -> (doc, reader)
@@ -293,4 +334,11 @@ OBSERVABLES: dict[str, tuple[str, Callable[[Sampler], Any]]] = {
                  "'contains': 'within 1 s of X: gcs.text contains \"...\"')", _new_texts),
     "gcs.all_text": ("every STATUSTEXT the GCS received so far", lambda s: s.texts()),
     "t_s": ("virtual time since the start (s)", lambda s: s.orch.t_ns / 1e9),
+    # -- added for the bus, board, link and vehicle scenarios -----------------------------------
+    "imu_latency_us": ("sensor_gyro (instance 0, the MPU6000): timestamp - timestamp_sample, "
+                       "how late the driver published its newest sample (us)", _imu_latency_us),
+    "mavlink.rx_lost": ("datagrams the FMU's mavlink receive queues dropped (all links)",
+                        _mavlink_rx_lost),
+    "shell.status": ("exit status of the last shell step (0: success)", _shell("status")),
+    "shell.output": ("what the last shell step printed", _shell("output")),
 }
