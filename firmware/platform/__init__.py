@@ -18,8 +18,8 @@ __all__ = ["Platform"]
 
 
 #: syslog severities used by PX4's log_message
-SEV_ERR, SEV_WARN, SEV_INFO, SEV_DEBUG = 3, 4, 6, 7
-_LEVEL_NAMES = {SEV_ERR: "ERROR", SEV_WARN: "WARN", SEV_INFO: "INFO", SEV_DEBUG: "DEBUG"}
+SEV_EMERG, SEV_ERR, SEV_WARN, SEV_INFO, SEV_DEBUG = 0, 3, 4, 6, 7
+_LEVEL_NAMES = {SEV_EMERG: "EMERG", SEV_ERR: "ERROR", SEV_WARN: "WARN", SEV_INFO: "INFO", SEV_DEBUG: "DEBUG"}
 
 DMESG_LINES = 2000
 
@@ -68,6 +68,9 @@ class Platform:
 
     def error(self, module: str, text: str) -> None:
         self.log(SEV_ERR, module, text)
+
+    def emergency(self, module: str, text: str) -> None:
+        self.log(SEV_EMERG, module, text)
 
     def dmesg_text(self) -> str:
         return "\n".join(f"[{t / 1e6:10.6f}] {_LEVEL_NAMES.get(sev, sev)} [{mod}] {text}"

@@ -126,6 +126,9 @@ class ModuleBase:
     def error(self, text: str) -> None:
         self.platform.error(self.name, text)
 
+    def emergency(self, text: str) -> None:
+        self.platform.emergency(self.name, text)
+
     # -- life cycle -------------------------------------------------------------------------------
 
     def start(self) -> None:

@@ -486,3 +486,71 @@ def test_takeoff_finished_switches_to_hold() -> None:
     rig.run(0.5)
     assert rig.status.nav_state == LOITER
     assert math.isclose(rig.last("position_setpoint_triplet").current.alt, HOME[2] + 5.0)
+
+
+# -- failure detector -----------------------------------------------------------------------
+
+
+def _tilt(rig: Rig, roll_deg: float = 0.0, pitch_deg: float = 0.0) -> None:
+    r, p = math.radians(roll_deg) / 2, math.radians(pitch_deg) / 2
+    q = [math.cos(r) * math.cos(p), math.sin(r) * math.cos(p), math.cos(r) * math.sin(p),
+         -math.sin(r) * math.sin(p)]
+    rig.set("vehicle_attitude", q=q)
+
+
+def _flying(rig: Rig, seconds: float = 5.0) -> None:
+    _tilt(rig)
+    assert rig.arm() == ACCEPTED
+    rig.set("vehicle_land_detected", landed=False)
+    rig.run(seconds)
+
+
+def test_failure_detector_flags_a_roll_held_past_fd_fail_r_for_its_trigger_time(rig: Rig):
+    _flying(rig)
+    _tilt(rig, roll_deg=70)
+    rig.run(0.2)                       # FD_FAIL_R_TTRI 0.3 s: not yet
+    assert rig.status.failure_detector_status == 0
+    rig.run(0.25)
+    assert rig.status.failure_detector_status & 1       # roll
+    assert not rig.status.failure_detector_status & 2
+    # CBRK_FLIGHTTERM at PX4's default 121212: flags only, the vehicle stays armed and flying
+    armed = rig.last("actuator_armed")
+    assert armed.armed and not armed.force_failsafe and not armed.lockdown
+    assert "Critical failure" not in rig.dmesg()
+    _tilt(rig, pitch_deg=-65)
+    rig.run(0.5)
+    assert rig.status.failure_detector_status == 2     # pitch only now
+
+
+def test_failure_detector_terminates_the_flight_without_the_circuit_breaker():
+    rig = Rig(params={"CBRK_FLIGHTTERM": 0})
+    _flying(rig)
+    _tilt(rig, roll_deg=100)
+    rig.run(0.5)
+    armed = rig.last("actuator_armed")
+    assert armed.force_failsafe and not armed.lockdown  # the IO's failsafe outputs
+    assert "Critical failure detected: terminate flight" in rig.dmesg()
+    assert any(sev == 0 for _, sev, mod, _ in rig.platform.dmesg if mod == "commander")
+
+
+def test_failure_detector_locks_the_motors_down_right_after_takeoff():
+    rig = Rig(params={"CBRK_FLIGHTTERM": 0})
+    _flying(rig, seconds=1.0)          # within COM_LKDOWN_TKO (3 s) of takeoff
+    _tilt(rig, pitch_deg=80)
+    rig.run(0.5)
+    armed = rig.last("actuator_armed")
+    assert armed.lockdown and not armed.force_failsafe
+    assert "Critical failure detected: lockdown" in rig.dmesg()
+
+
+def test_failure_detector_off_with_fd_fail_r_zero_and_on_the_ground():
+    rig = Rig(params={"FD_FAIL_R": 0, "CBRK_FLIGHTTERM": 0})
+    _flying(rig)
+    _tilt(rig, roll_deg=120)
+    rig.run(1.0)
+    assert rig.status.failure_detector_status == 0
+    assert not rig.last("actuator_armed").force_failsafe
+    disarmed = Rig(params={"CBRK_FLIGHTTERM": 0})
+    _tilt(disarmed, roll_deg=120)      # not armed: nothing is watched
+    disarmed.run(1.0)
+    assert disarmed.status.failure_detector_status == 0

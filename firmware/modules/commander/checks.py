@@ -53,6 +53,7 @@ class VehicleData:
         self.estimator = sub("estimator_status")
         self.imu = sub("sensors_status_imu")            # instance 0: the gyros
         self.imu_accel = sub("sensors_status_imu", 1)   # instance 1: the accelerometers
+        self.attitude = sub("vehicle_attitude")
         self.baro = sub("sensors_status_baro")
         self.mag = sub("sensors_status_mag")
         self.io = sub("px4io_status")

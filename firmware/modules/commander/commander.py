@@ -21,6 +21,7 @@ from firmware.modules.commander import failsafe as fs
 from firmware.modules.commander import modes
 from firmware.modules.commander.checks import Failure, VehicleData, preflight_failures
 from firmware.modules.commander.commands import CommandHandler
+from firmware.modules.commander.failure_detector import FAILURE_DETECTOR_PARAMS, FailureDetector
 from firmware.modules.commander.geofence import GEOFENCE_PARAMS, Geofence
 from firmware.modules.commander.params import PARAMS
 from firmware.platform.module import WorkItemModule
@@ -62,7 +63,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
     WQ = "wq:hp_default"
     INTERVAL_US = 10_000
     CPU_COST_NS = 150_000
-    PARAMS = PARAMS + GEOFENCE_PARAMS
+    PARAMS = PARAMS + GEOFENCE_PARAMS + FAILURE_DETECTOR_PARAMS
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
@@ -88,6 +89,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.battery_warning = 0
         self.home_valid = False
         self.geofence = Geofence(self)
+        self.failure_detector = FailureDetector(self)
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -156,6 +158,11 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._update_battery()
         if self.arming_state == ARMED:
             self._update_in_air(now)
+            fd = self.failure_detector
+            fd.update(now, self._flags.get(self.nav_state, self._flags[modes.MANUAL])
+                      ["flag_control_attitude_enabled"])
+            if fd.terminated and not self.terminated:
+                self.terminated = True  # flight termination: the IO's failsafe outputs
         elif self._loop % CHECK_EVERY == 1 or self.arming_state == INIT:
             self.run_checks(now)
             if not self.home_valid:
@@ -222,6 +229,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.takeoff_time_us = 0
         self.landed_since_us = None
         self.failsafe.clear()
+        self.failure_detector.reset()
         self.set_home(now, quiet=True)
         self.info("Armed" + (" (forced)" if force else ""))
         return True, ""
@@ -375,7 +383,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         bat = self.battery_warning
         sig = (self.arming_state, self.nav_state, self.user_nav, self.failsafe_active,
                self.failsafe_action, self.rc_lost, self.dl_lost, ready, bat, self.kill_engaged,
-               self.have_taken_off)
+               self.have_taken_off, self.failure_detector.status, self.failure_detector.lockdown)
         if sig == self._last_sig and now - self._last_pub_us < PUBLISH_INTERVAL_US:
             return
         self._last_sig, self._last_pub_us = sig, now
@@ -384,6 +392,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         s.arming_state = self.arming_state
         s.armed_time = self.armed_time_us if armed else 0
         s.takeoff_time = self.takeoff_time_us
+        s.failure_detector_status = self.failure_detector.status
         s.latest_arming_reason = self.arm_reason
         s.latest_disarming_reason = self.disarm_reason
         s.nav_state = self.nav_state
@@ -420,7 +429,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         safety_off = io is not None and io.status_safety_off
         a.prearmed = armed or prearm == 2 or (prearm == 1 and safety_off)
         a.ready_to_arm = ready or armed
-        a.lockdown = False
+        a.lockdown = armed and self.failure_detector.lockdown
         a.manual_lockdown = self.kill_engaged
         a.force_failsafe = self.nav_state == modes.TERMINATION
         self._pub_armed.publish(a)
