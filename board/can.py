@@ -24,6 +24,15 @@ on them):
   neither sends, receives nor acknowledges. Recovery takes 128 x 11 recessive bit times
   (modelled as 1408 bit times, whatever the bus traffic) after bus-off, automatically if
   ``auto_recovery`` (bxCAN ABOM), else after :meth:`CanController.recover`.
+- A controller built with ``enabled=False`` is a bxCAN still in sleep/initialisation mode
+  after reset: it neither sends, receives nor acknowledges until :meth:`CanController.enable`
+  (the driver leaving initialisation mode).
+- Wire faults (:meth:`CanBus.set_wire_fault`): CAN_H shorted to CAN_L holds the bus recessive,
+  so a transmitter reads recessive back at its dominant SOF: a bit error at bit 1, TEC += 8
+  (no ACK-error exception), an error flag nobody sees (6 + 8 bits) and the interframe space;
+  receivers see an idle bus (no REC change), so bus-off recovery (recessive bits) still counts.
+  A bit-error rate corrupts each bit with that probability (seeded): the first bad bit ends the
+  attempt in an error frame, as an injected corruption does, at that bit.
 - Arbitration happens when the bus goes idle, among all frames queued by then, including
   frames queued in the very instant the bus goes idle (the arbitration event runs after every
   other event of that nanosecond). Two nodes sending the same arbitration field: the node
@@ -32,6 +41,8 @@ on them):
 
 from __future__ import annotations
 
+import math
+import random
 from collections import deque
 from collections.abc import Callable
 from typing import Any
@@ -186,6 +197,9 @@ class CanBus:
         self._busy = False
         self._arb_event: list | None = None
         self._inject = 0
+        self._short = False
+        self._ber = 0.0
+        self._ber_rng: Any = None
         #: Frames transmitted without error.
         self.frames = 0
         #: Error frames seen on the bus.
@@ -208,6 +222,24 @@ class CanBus:
         if type(n) is not int or n < 0:
             raise ValueError(f"CanBus {self.name}: inject_errors needs an int >= 0, got {n!r}")
         self._inject += n
+
+    def set_wire_fault(self, short: bool = False, bit_error_rate: float = 0.0,
+                       seed: int | str = 0) -> None:
+        """Make the wire itself faulty: ``short`` (CAN_H shorted to CAN_L: the bus stays
+        recessive, every transmission fails at its SOF) and/or ``bit_error_rate`` (each bit on
+        the wire is corrupted with that probability, from a ``random.Random(seed)``). Both off
+        heals the wire. Frames already on the wire finish as they started."""
+        if not isinstance(bit_error_rate, (int, float)) or not 0.0 <= bit_error_rate <= 1.0:
+            raise ValueError(f"CanBus {self.name}: bit_error_rate must be in [0, 1], "
+                             f"got {bit_error_rate!r}")
+        self._short = bool(short)
+        self._ber = float(bit_error_rate)
+        self._ber_rng = random.Random(f"{seed}/{self.name}/ber") if self._ber > 0 else None
+
+    @property
+    def wire_fault(self) -> tuple[bool, float]:
+        """(short, bit_error_rate) of the wire now."""
+        return self._short, self._ber
 
     def force_bus_off(self, controller: CanController) -> None:
         """Put ``controller`` in bus-off now (TEC = 256), as after a burst of errors."""
@@ -234,7 +266,7 @@ class CanBus:
         best_key = 0
         later = None
         for ctrl in self.controllers:
-            if ctrl._bus_off:
+            if ctrl._bus_off or not ctrl.enabled:
                 continue
             slot = ctrl._next_mailbox()
             if slot is None:
@@ -253,8 +285,14 @@ class CanBus:
         ctrl, slot = best
         msg = ctrl._mailboxes[slot]
         nbits = frame_length_bits(msg)
-        ackers = [c for c in self.controllers if c is not ctrl and not c._bus_off]
-        if self._inject > 0:
+        ackers = [c for c in self.controllers
+                  if c is not ctrl and not c._bus_off and c.enabled]
+        err_at = nbits - TAIL_BITS + 2  # after CRC delimiter and ACK slot
+        if self._short:
+            kind, err_at = "short", 1   # recessive read back at the dominant SOF
+        elif self._ber > 0.0 and (bad := self._bit_error(nbits)) is not None:
+            kind, err_at = "corrupt", bad
+        elif self._inject > 0:
             self._inject -= 1
             kind = "corrupt"
         elif not ackers and not ctrl.loopback:
@@ -266,10 +304,20 @@ class CanBus:
             t_end = self.bits_ns(now, nbits)
             self._idle_ns = self.bits_ns(now, nbits + IFS_BITS)
         else:
-            err_at = nbits - TAIL_BITS + 2  # after CRC delimiter and ACK slot
             t_end = self.bits_ns(now, err_at)
             self._idle_ns = self.bits_ns(now, err_at + ERROR_FRAME_BITS + IFS_BITS)
         self.kernel.call_at(t_end, self._finish, ctrl, slot, msg, kind, priority=PRIO_HW)
+
+    def _bit_error(self, nbits: int) -> int | None:
+        """With a bit-error rate: the 1-based bit of this attempt that is corrupted (the error
+        frame starts after it), or None if the attempt gets through. Bits after the ACK slot
+        (ACK delimiter, EOF) are not drawn."""
+        ber = self._ber
+        if ber >= 1.0:
+            return 1
+        u = self._ber_rng.random()  # the first bad bit is geometric: every bit before is good
+        k = int(math.log1p(-u) / math.log1p(-ber)) + 1
+        return k if k <= nbits - TAIL_BITS + 2 else None
 
     def _finish(self, ctrl: CanController, slot: int, msg: can.Message, kind: str) -> None:
         now = self.kernel.now_ns
@@ -277,15 +325,15 @@ class CanBus:
         if kind == "ok":
             self.frames += 1
             for c in self.controllers:
-                if (c is not ctrl or c.loopback) and not c._bus_off:
+                if (c is not ctrl or c.loopback) and not c._bus_off and c.enabled:
                     c._received(now, msg)
             ctrl._tx_done(now, slot, msg, True)
         else:
             self.error_frames += 1
             if kind == "corrupt":
                 for c in self.controllers:
-                    if c is not ctrl and not c._bus_off:
-                        c._receive_error()
+                    if c is not ctrl and not c._bus_off and c.enabled:
+                        c._receive_error(now)
             ctrl._tx_error(now, slot, msg, ack_error=(kind == "ack"))
         if ctrl.state == "error_passive":
             ctrl._earliest_tx_ns = self.bits_ns(self._idle_ns, SUSPEND_BITS)
@@ -304,16 +352,19 @@ class CanController:
     the newest stored message is overwritten (bxCAN RFLM=0), or the incoming one is dropped if
     ``rx_fifo_locked`` (RFLM=1). ``auto_retransmit`` False is bxCAN NART: one attempt, then the
     mailbox is released with ``ok=False``. ``loopback`` (bxCAN LBKM) also receives its own frames
-    and ignores a missing ACK. Interrupts run at ``PRIO_ISR`` with ``kernel.in_isr`` set:
+    and ignores a missing ACK. ``enabled=False`` builds it in sleep/initialisation mode (off the
+    bus until :meth:`enable`). Interrupts run at ``PRIO_ISR`` with ``kernel.in_isr`` set:
     ``on_receive(handler(t_ns))`` per stored message (FMP), ``on_tx_complete(handler(t_ns, msg,
-    ok))`` per released mailbox (RQCP).
+    ok))`` per released mailbox (RQCP), ``on_error(handler(t_ns, state))`` when the node enters
+    error passive or bus-off (bxCAN ERRIE with EPVIE and BOFIE; leaving bus-off raises none).
     """
 
     N_MAILBOXES = 3
 
     def __init__(self, bus: CanBus, name: str, rx_fifo_depth: int = 3,
                  rx_fifo_locked: bool = False, auto_retransmit: bool = True,
-                 auto_recovery: bool = True, loopback: bool = False) -> None:
+                 auto_recovery: bool = True, loopback: bool = False,
+                 enabled: bool = True) -> None:
         if type(rx_fifo_depth) is not int or rx_fifo_depth <= 0:
             raise ValueError(
                 f"CanController {name}: rx_fifo_depth must be a positive int, "
@@ -326,6 +377,8 @@ class CanController:
         self.auto_retransmit = auto_retransmit
         self.auto_recovery = auto_recovery
         self.loopback = loopback
+        self.enabled = bool(enabled)
+        self._err_handler: Callable[[int, str], Any] | None = None
         self._mailboxes: list[can.Message | None] = [None] * self.N_MAILBOXES
         self._fifo: deque[can.Message] = deque()
         self._rx_handler: RxHandler | None = None
@@ -383,6 +436,27 @@ class CanController:
         """Request-completed interrupt: ``handler(t_ns, msg, ok)``."""
         self._tx_handler = handler
 
+    def on_error(self, handler: Callable[[int, str], Any] | None) -> None:
+        """Error-status interrupt: ``handler(t_ns, state)`` on entering ``error_passive`` or
+        ``bus_off``."""
+        self._err_handler = handler
+
+    def enable(self) -> None:
+        """Leave initialisation mode: take part in the bus from now (bxCAN INRQ cleared)."""
+        if not self.enabled:
+            self.enabled = True
+            if self._next_mailbox() is not None and not self._bus_off:
+                self.bus._request_arbitration()
+
+    def disable(self) -> None:
+        """Back to initialisation mode: off the bus (a frame on the wire still completes)."""
+        self.enabled = False
+
+    def _raise_error(self, t_ns: int, state: str) -> None:
+        if self._err_handler is not None:
+            self.kernel.call_at(t_ns, call_in_isr, self.kernel, self._err_handler, t_ns, state,
+                                priority=PRIO_ISR)
+
     @property
     def state(self) -> str:
         """'error_active', 'error_passive' or 'bus_off'."""
@@ -432,9 +506,11 @@ class CanController:
             self.kernel.call_at(t_ns, call_in_isr, self.kernel, self._rx_handler, t_ns,
                                 priority=PRIO_ISR)
 
-    def _receive_error(self) -> None:
+    def _receive_error(self, t_ns: int) -> None:
         if self.rec < 255:
             self.rec += 1
+            if self.rec == 128 and self.tec <= 127:
+                self._raise_error(t_ns, "error_passive")
 
     def _tx_done(self, t_ns: int, slot: int, msg: can.Message, ok: bool) -> None:
         if self._mailboxes[slot] is msg:
@@ -449,10 +525,13 @@ class CanController:
 
     def _tx_error(self, t_ns: int, slot: int, msg: can.Message, ack_error: bool) -> None:
         self.tx_errors += 1
-        if not (ack_error and self.state == "error_passive"):
+        was = self.state
+        if not (ack_error and was == "error_passive"):
             self.tec += 8
         if self.tec > 255:
             self._enter_bus_off(t_ns)
+        elif was == "error_active" and self.state == "error_passive":
+            self._raise_error(t_ns, "error_passive")
         if not self.auto_retransmit:
             self._tx_done(t_ns, slot, msg, False)
 
@@ -461,6 +540,7 @@ class CanController:
             return
         self._bus_off = True
         self.bus_off_count += 1
+        self._raise_error(t_ns, "bus_off")
         if self.auto_recovery:
             self._schedule_recovery(t_ns)
 

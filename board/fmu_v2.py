@@ -12,6 +12,12 @@ Ports that leave the board (see board/wiring.py):
 * ``power`` (in): ``(volts, amps)`` at the power module, which the ADC pins see through the
   module's dividers.
 * ``io_link`` (USART6), ``telem1``, ``telem2``, ``console``: UARTs.
+* CAN1 (PD0 RX / PD1 TX through the transceiver to the CAN connector) and CAN2, each a
+  :class:`~board.can.CanBus` at 1 Mbit/s with the FMU's bxCAN controller in sleep mode until
+  the uavcan driver enables it. ``uavcan_nodes=(125,)`` plugs UAVCAN nodes with those IDs into
+  CAN1 (:class:`peripherals.uavcan_node.UavcanNode`: NodeStatus at 1 Hz). The CAN hardware is
+  built on first use (python-can takes ~0.2 s to import): a board whose firmware never touches
+  CAN and has no node on it pays nothing, at start or per quantum.
 * ``udp_in`` / ``udp_out``: the FMU's network interface as PX4 SITL has one, carrying whole
   datagrams ``(fmu_port, remote_port, bytes)``; the host side (hil/mavlink_bridge.py) owns the
   real sockets. The mavlink module binds its UDP instances in ``udp_handlers``.
@@ -68,7 +74,7 @@ class FmuV2Board(Board):
                  sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
                  firmware: str = "rcS", exclude: tuple[str, ...] = (),
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
-                 host_clock: Any = None) -> None:
+                 host_clock: Any = None, uavcan_nodes: tuple[int, ...] = ()) -> None:
         if firmware not in ("rcS", "sensors", "none"):
             raise ValueError(f"firmware must be 'rcS', 'sensors' or 'none', got {firmware!r}")
         super().__init__(name, seed)
@@ -96,7 +102,13 @@ class FmuV2Board(Board):
         # GPS modules sold for the Pixhawk are usually re-saved at 38400 (a factory u-blox M8
         # starts at 9600, which costs the driver a full baud scan: pass gps_baud=9600).
         self._gps_baud = gps_baud
+        self._can: dict[str, Any] | None = None
+        self.can_ctrl: dict[str, Any] = {}
+        self.can_nodes: list[Any] = []
+        self._uavcan_nodes = tuple(uavcan_nodes)
         self._build_devices()
+        if self._uavcan_nodes:
+            self._build_can()
         self._expose_ports()
         self._power_v = 0.0
         self._power_a = 0.0
@@ -159,6 +171,34 @@ class FmuV2Board(Board):
             model = cls(k, env, self._rng(u.role), name=u.role, baud=self._gps_baud)
             UartWire(self.uarts[u.name], model.uart)
             self.devices[u.role] = model
+
+    #: CAN bit rate of the FMU's buses (PX4's UAVCAN_BITRATE default)
+    CAN_BITRATE = 1_000_000
+
+    @property
+    def can(self) -> dict[str, Any]:
+        """The CAN buses by name (``CAN1``, ``CAN2``), built on first use."""
+        if self._can is None:
+            self._build_can()
+        return self._can  # type: ignore[return-value]
+
+    def _build_can(self) -> None:
+        from board.can import CanBus, CanController
+
+        self._can = {}
+        for c in self.spec.can:
+            bus = CanBus(self.kernel, c.name, self.CAN_BITRATE)
+            self._can[c.name] = bus
+            # bxCAN after reset: sleep mode, off the bus until the driver initialises it;
+            # automatic bus-off management (ABOM) as libuavcan's STM32 driver sets it
+            self.can_ctrl[c.name] = CanController(bus, f"{self.name}.{c.name}", enabled=False,
+                                                  auto_recovery=True)
+        if self._uavcan_nodes:
+            from peripherals.uavcan_node import UavcanNode
+
+            for node_id in self._uavcan_nodes:
+                self.can_nodes.append(UavcanNode(self.kernel, self._can["CAN1"], node_id,
+                                                 name=f"uavcan_node{node_id}"))
 
     def _expose_ports(self) -> None:
         for u in self.spec.uarts:
@@ -411,6 +451,24 @@ class FmuV2Board(Board):
             self.devices[name].set_power(bool(on))
         self.sensor_rail_on = bool(on)
         return names
+
+    def ctl_can_fault(self, bus: str, short: bool = False, bit_error_rate: float = 0.0) -> None:
+        """Make a CAN bus's wire faulty: CAN_H shorted to CAN_L (``short``) and/or a bit-error
+        rate (seeded by the board seed); both off heals it (:meth:`CanBus.set_wire_fault`)."""
+        self._bus("can", bus).set_wire_fault(bool(short), float(bit_error_rate),
+                                             seed=f"{self.seed}")
+
+    def ctl_can_stats(self, bus: str) -> dict[str, Any]:
+        """The FMU controller's error state and counters on ``bus``, the bus's, and every
+        UAVCAN node plugged into it."""
+        b = self._bus("can", bus)
+        c = self.can_ctrl[bus]
+        return {"state": c.state, "tec": c.tec, "rec": c.rec, "enabled": c.enabled,
+                "bus_off_count": c.bus_off_count, "tx_errors": c.tx_errors,
+                "tx_frames": c.tx_frames, "rx_frames": c.rx_frames, "frames": b.frames,
+                "error_frames": b.error_frames, "wire_fault": b.wire_fault,
+                "nodes": {n.node_id: n.stats() for n in self.can_nodes
+                          if n.ctrl.bus is b}}
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)

@@ -53,6 +53,7 @@ class SystemConfig:
     gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
     pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
+    uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (node IDs) plugged into the FMU's CAN1
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -70,6 +71,8 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
                                   "sd_root": sd_root, "params": params}
     if cfg.host_clock:
         fmu_kwargs["host_clock"] = "perf_counter"
+    if cfg.uavcan_nodes:
+        fmu_kwargs["uavcan_nodes"] = tuple(cfg.uavcan_nodes)
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
     world = WorldPorts(seed=cfg.seed)

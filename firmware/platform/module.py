@@ -287,6 +287,7 @@ FMU_V2_MODULES: dict[str, str] = {
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
     "navigator": "firmware.modules.navigator:NavigatorModule",
     "land_detector": "firmware.modules.land_detector:LandDetectorModule",
+    "uavcan": "firmware.drivers.uavcan:UavcanModule",
 }
 
 

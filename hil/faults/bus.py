@@ -163,3 +163,34 @@ def _i2c_heal(rig: Rig, target: str, params: dict[str, Any], t_ns: int, token: A
 
 i2c_nak_storm.stopper(_i2c_heal)  # type: ignore[attr-defined]
 i2c_sda_stuck.stopper(_i2c_heal)  # type: ignore[attr-defined]
+
+
+@fault_kind("bus.can_bus_off", level="bus", targets=("fmu.CAN1", "fmu.CAN2"), short=1,
+            bit_error_rate=0.0,
+            doc="The FMU's CAN bus wire goes bad: CAN_H shorted to CAN_L (short=1, a crushed "
+                "cable, a connector pin bent across) holds the bus recessive, so every "
+                "transmitter reads back recessive at its dominant SOF (a bit error: TEC += 8, "
+                "and nobody sees its error flag); or each bit is corrupted with "
+                "bit_error_rate (EMI, a missing terminator), every node counting the error "
+                "frame. After 32 failed attempts (TEC > 255, ~0.7 ms at 1 Mbit/s with a "
+                "short) the bxCAN goes bus-off; with ABOM it rejoins after 128 x 11 recessive "
+                "bits (1.4 ms) and fails again while the fault lasts. PX4's uavcan driver "
+                "counts bus-off events from the error interrupt and reports the controller "
+                "state, TEC and REC (uavcan status, can_interface_status); the other nodes' "
+                "NodeStatus stops arriving and they go offline 3 s after the last one. When "
+                "the wire is mended the controller recovers and NodeStatus traffic resumes.")
+def can_bus_off(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.can_bus_off"
+    board, bus = _split(target, name, "CANn")
+    short = int(number(params, "short", name, 0, 1))
+    ber = number(params, "bit_error_rate", name, 0.0, 1.0)
+    if not short and not ber:
+        raise FaultError(f"fault {name}: give short=1 or a bit_error_rate above 0")
+    board_call(rig, name, board, "can_fault", bus, bool(short), ber)
+    return (board, bus)
+
+
+@can_bus_off.stopper
+def _can_bus_off_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                      token: Any) -> None:
+    board_call(rig, "bus.can_bus_off", token[0], "can_fault", token[1], False, 0.0)

@@ -146,3 +146,53 @@ def glitch_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> li
 def glitch_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
     for rx, item in token:
         _close(rx._glitch, item, t_ns)
+
+
+#: receivers that can be plugged into another's connector: UART protocols on UART inputs
+_UART_KINDS = ("sbus", "dsm")
+
+
+@fault_kind("rc.wrong_protocol", level="rc", targets=_UART_KINDS, protocol="dsm",
+            doc="The IO's RC input gets a receiver of another protocol than the one it "
+                "listens for there (target: the fitted receiver, sbus or dsm; protocol: the "
+                "receiver plugged in instead, bound to the same transmitter): a Spektrum "
+                "satellite's 115200 8N1 bytes on the S.BUS input (100 kbit/s 8E2 behind its "
+                "inverter), or an S.BUS receiver on the satellite port. The E14 IO firmware "
+                "does not autodetect: each input has its own decoder, so the wrong line format "
+                "gives framing/parity errors and bytes that never form a frame. Nothing valid "
+                "is decoded: 200 ms after the last good frame the IO clears RC_OK and its "
+                "source flag and raises ALARM_RC_LOST, the FMU sees input_rc rc_lost with no "
+                "channels and, after COM_RC_LOSS_T, manual control lost. Swapping the right "
+                "receiver back (it powers up and re-binds) restores RC.")
+def wrong_protocol_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
+    from hil.rc import make_receiver
+
+    proto = params["protocol"]
+    if proto not in _UART_KINDS:
+        raise FaultError(f"fault rc.wrong_protocol: protocol must be one of "
+                         f"{', '.join(_UART_KINDS)} (a PPM pulse train on a UART input is not "
+                         f"modelled), got {proto!r}")
+    if proto == target:
+        raise FaultError(f"fault rc.wrong_protocol: protocol {proto!r} is what the {target} "
+                         f"input expects; give another one")
+    rig_rc = rig.dev["rc"]
+    token = []
+    for rx in _receivers(rig, target, "rc.wrong_protocol"):
+        wrong = make_receiver(proto, rig_rc.tx, port=rx.port, start_ns=t_ns, seed=rx.seed)
+        rx._out = [r for r in rx._out if r[1] < t_ns]  # frames not yet on the wire: none
+        item = _open(rx._unplugged, t_ns)
+        rig_rc.receivers.append(wrong)
+        token.append((rx, item, wrong))
+    return token
+
+
+@wrong_protocol_start.stopper
+def wrong_protocol_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int,
+                        token: list) -> None:
+    rig_rc = rig.dev["rc"]
+    for rx, item, wrong in token:
+        wrong.unplug(t_ns)
+        wrong._out = [r for r in wrong._out if r[1] < t_ns]
+        if not wrong._out and wrong in rig_rc.receivers:
+            rig_rc.receivers.remove(wrong)
+        _close(rx._unplugged, item, t_ns)

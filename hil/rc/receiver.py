@@ -94,6 +94,7 @@ class Receiver:
         self._dropped = _Windows()
         self._glitch = _Windows()
         self._forced_failsafe = _Windows()
+        self._unplugged = _Windows()
 
     # -- faults ---------------------------------------------------------------------------------
 
@@ -115,6 +116,11 @@ class Receiver:
     def force_failsafe(self, t0_ns: int, t1_ns: int | None = None) -> None:
         """Receiver reports failsafe in ``[t0, t1)`` with a good link (S.BUS failsafe bit)."""
         self._forced_failsafe.add(t0_ns, t1_ns)
+
+    def unplug(self, t0_ns: int, t1_ns: int | None = None) -> None:
+        """Unplugged from its connector in ``[t0, t1)``: unpowered, nothing on the wire; plugged
+        back it powers up again and sends nothing until its first RF frame (re-bind)."""
+        self._unplugged.add(t0_ns, t1_ns)
 
     def link_ok(self, t_ns: int) -> bool:
         """True when the RF link exists at ``t_ns`` (transmitter on, in range)."""
@@ -174,6 +180,11 @@ class Receiver:
     def _frame(self, t_ns: int) -> int:
         k = self._k
         self._k = k + 1
+        if self._unplugged.items and self._unplugged.at(t_ns) is not None:
+            self.held = None  # unpowered: it forgets the link
+            self.last_rf_ns = None
+            self.lost_run = 0
+            return self.period_ns
         rf = self.link_ok(t_ns) and self._dropped.at(t_ns) is None
         if rf and self.frame_loss_prob > 0.0:
             rf = self.rng(k).random() >= self.frame_loss_prob

@@ -22,7 +22,7 @@ __all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
 
 TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
             "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
-            "known_failure"}
+            "known_failure", "uavcan_nodes"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
               "settle")
@@ -108,6 +108,7 @@ class Scenario:
     reference: str = ""             # where the expected behaviour comes from (PX4 docs, params)
     known_failure: str = ""         # why this tree fails it today (the library test expects
                                     # the failure, strictly: a fix turns it into a pass)
+    uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (their IDs) on the FMU's CAN1
     source: str = ""                # the file it came from
 
     def fault_kinds(self) -> set[str]:
@@ -354,6 +355,11 @@ def _from_dict(data: Any, source: str) -> Scenario:
             raise ScenarioError(f"params: {k!r}: {v!r} is not NAME: number")
     initial = _mapping(d.get("initial") or {}, "initial")
     _only(initial, INITIAL_KEYS, "initial")
+    nodes = d.get("uavcan_nodes") or []
+    if not isinstance(nodes, list) or not all(
+            isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 125 for n in nodes) \
+            or len(set(nodes)) != len(nodes):
+        raise ScenarioError(f"uavcan_nodes: a list of distinct node IDs 1..125, got {nodes!r}")
     events = {}
     for ev, spec in _mapping(d.get("events") or {}, "events").items():
         events[str(ev)] = _cond(spec, f"events.{ev}")
@@ -389,7 +395,8 @@ def _from_dict(data: Any, source: str) -> Scenario:
         duration_s=_num(d.get("duration", 120.0), "duration"), events=events,
         timeline=timeline, expect=expect, trace=bool(d.get("trace", True)),
         reference=str(d.get("reference", "")).strip(),
-        known_failure=str(d.get("known_failure", "") or "").strip(), source=source)
+        known_failure=str(d.get("known_failure", "") or "").strip(), source=source,
+        uavcan_nodes=tuple(nodes))
     if not 1.0 <= sc.sample_ms <= 1000.0:
         raise ScenarioError(f"sample_ms: {sc.sample_ms} outside 1..1000")
     return sc

@@ -329,3 +329,80 @@ def test_bad_arguments_raise(kernel):
         CanController(bus, "x", rx_fifo_depth=0)
     with pytest.raises(ValueError, match="inject_errors"):
         bus.inject_errors(-1)
+
+
+# -- wire faults, sleep mode, error interrupts ------------------------------------------------------
+
+SHORT_ATTEMPT = 1 + 14 + 3  # SOF read back recessive, error flag + delimiter, interframe space
+
+
+def test_short_drives_the_sender_bus_off_in_32_attempts_receivers_untouched(kernel):
+    bus = CanBus(kernel, "can1")
+    a, b = CanController(bus, "a"), CanController(bus, "b")
+    got = listener(b)
+    errs = []
+    a.on_error(lambda t, state: errs.append((t, state)))
+    bus.set_wire_fault(short=True)
+    a.send(msg(0x0F0, b"\x55"))
+    # 16 attempts while error active, 16 more each after an 8-bit suspend; the 32nd error
+    # (TEC 256) is detected at its SOF bit
+    t_passive = (15 * SHORT_ATTEMPT + 1) * 1000
+    t_off = (31 * SHORT_ATTEMPT + 16 * 8 + 1) * 1000
+    kernel.run(t_off - 1)
+    assert a.state == "error_passive" and a.tec == 248 and a.tx_errors == 31
+    kernel.run(t_off)
+    assert a.state == "bus_off" and a.bus_off_count == 1
+    assert errs == [(t_passive, "error_passive"), (t_off, "bus_off")]
+    assert b.rec == 0 and b.state == "error_active" and got == []  # an idle bus to them
+    # the short is recessive: recovery completes, the frame fails again
+    kernel.run(t_off + 128 * 11 * 1000)
+    assert a.state == "error_active" and a.tec == 0
+    kernel.run(t_off + 128 * 11 * 1000 + t_off)
+    assert a.bus_off_count == 2 and got == []
+    # mended: the next recovery sends the frame
+    bus.set_wire_fault()
+    kernel.run(NS)
+    assert [aid for _, aid, _, _ in got] == [0x0F0] and a.state == "error_active"
+
+
+def test_bit_error_rate_is_seeded_counts_both_sides_and_can_reach_bus_off(kernel):
+    def run(seed, ber, n_frames):
+        k = type(kernel)()
+        bus = CanBus(k, "can1")
+        a, b = CanController(bus, "a"), CanController(bus, "b")
+        got = listener(b)
+        bus.set_wire_fault(bit_error_rate=ber, seed=seed)
+        for i in range(n_frames):
+            k.call_at(i * 1_000_000, a.send, msg(0x100 + i % 3, bytes(8)))
+        k.run(n_frames * 1_000_000 + 10_000_000)
+        return a, b, bus, got
+
+    a1, b1, bus1, got1 = run(5, 5e-4, 200)
+    a2, _, _, got2 = run(5, 5e-4, 200)
+    assert got1 == got2 and a1.tx_errors == a2.tx_errors  # same seed, same errors
+    _, _, _, got3 = run(6, 5e-4, 200)
+    assert [t for t, *_ in got3] != [t for t, *_ in got1]  # another seed, other errors
+    # ~130 bits per frame: ~6 % of the attempts fail; every one retried and delivered once
+    assert 3 < a1.tx_errors < 30 and len(got1) == 200 and a1.state == "error_active"
+    assert bus1.error_frames == a1.tx_errors
+    # a heavy rate: most attempts fail, TEC climbs 8 per error and 1 per success
+    a3, _, _, _ = run(5, 0.05, 5)
+    assert a3.bus_off_count >= 1
+    with pytest.raises(ValueError, match="bit_error_rate"):
+        CanBus(kernel, "x").set_wire_fault(bit_error_rate=1.5)
+
+
+def test_controller_in_sleep_mode_is_off_the_bus_until_enabled(kernel):
+    bus = CanBus(kernel, "can1")
+    a = CanController(bus, "a")
+    b = CanController(bus, "b", enabled=False)
+    got = listener(b)
+    b.send(msg(0x55))
+    a.send(msg(0x7))
+    kernel.run(1_000_000)
+    assert got == [] and a.state == "error_passive"  # nobody ACKs; b sends nothing
+    assert b.tx_frames == 0 and b.tec == 0
+    b.enable()
+    kernel.run(NS)
+    assert b.tx_frames == 1 and a.tx_frames == 1
+    assert [aid for _, aid, _, _ in got] == [0x7]
