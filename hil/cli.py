@@ -18,7 +18,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     cfg = FlightConfig(seed=args.seed, out_dir=args.out, airframe=args.airframe,
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
                        mode="local" if args.one_process else "process",
-                       timeout_s=args.duration, progress=not args.json)
+                       timeout_s=args.duration, progress=not args.json,
+                       pipeline=not args.no_pipeline)
     return main(cfg, as_json=args.json)
 
 
@@ -142,6 +143,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--airframe", type=int, default=4011, help="SYS_AUTOSTART (default 4011, F450)")
     p.add_argument("--one-process", action="store_true",
                    help="run both boards in this process (debugging)")
+    p.add_argument("--no-pipeline", action="store_true",
+                   help="plain lockstep: a board waits for the orchestrator every quantum "
+                        "(default: lookahead, boards hold the next quantum; records between "
+                        "boards up to two quanta late)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
 

@@ -47,7 +47,7 @@ class FlightConfig:
     progress: bool = True
     plot: bool = True
     keep_truth: bool = False            # return the recorded truth in the summary ("truth")
-    pipeline: bool = False              # lookahead lockstep (see Orchestrator._step_pipelined)
+    pipeline: bool = True               # lookahead lockstep (see Orchestrator._step_pipelined)
 
 
 class _Recorder:
