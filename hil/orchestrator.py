@@ -220,12 +220,19 @@ class Orchestrator:
             except BoardDied as died:
                 self._board_died(name, died.detail, until)
                 continue
-            if trace is not None:
-                trace.write(name, until, sent[name], outputs)
-            if outputs:
-                self._route_all(name, outputs)
-                if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
-                    self._reboot_pending.append(name)
+            self._received(name, until, sent.get(name), outputs)
+        self._end_quantum(until)
+
+    def _received(self, name: str, until: int, inputs: list | None, outputs: list) -> None:
+        """A board's outputs of the quantum ending at ``until``: trace, route, note a reboot."""
+        if self._trace is not None:
+            self._trace.write(name, until, inputs, outputs)
+        if outputs:
+            self._route_all(name, outputs)
+            if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
+                self._reboot_pending.append(name)
+
+    def _end_quantum(self, until: int) -> None:
         self.t_ns = until
         while self._reboot_pending:
             self._restart(self._reboot_pending.pop(0))
@@ -251,9 +258,7 @@ class Orchestrator:
         start = self.t_ns
         q = self.quantum_ns
         until = start + q
-        inbox = self._inbox
         dead = self.dead
-        pending = self._pending
         posted = self._posted_to
         live = [(n, h) for n, h in self.handles.items() if not (dead and n in dead)]
         for name, handle in live:  # a board not yet ahead (first quantum, reboot, drained)
@@ -270,14 +275,7 @@ class Orchestrator:
                 self._post(name, handle, posted[name], until + q)
         for name, handle in live:
             self._collect(name, handle, until)
-        self.t_ns = until
-        while self._reboot_pending:
-            self._restart(self._reboot_pending.pop(0))
-        self.quanta += 1
-        for hook in self.on_quantum:
-            hook(self)
-        if self.speed is not None:
-            self._pace()
+        self._end_quantum(until)
 
     def _post(self, name: str, handle: Any, start: int, until: int) -> None:
         inputs = self._inbox[name]
@@ -299,12 +297,7 @@ class Orchestrator:
                 pending.clear()
                 self._board_died(name, died.detail, until)
                 return
-            if self._trace is not None:
-                self._trace.write(name, until, inputs, outputs)
-            if outputs:
-                self._route_all(name, outputs)
-                if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
-                    self._reboot_pending.append(name)
+            self._received(name, until, inputs, outputs)
 
     def _drain(self, name: str) -> None:
         """Pipelined mode: finish every quantum already handed to this board (before a
