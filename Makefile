@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint clean
+.PHONY: demo test bench lint clean native
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -13,12 +13,17 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# The compiled tier (mypyc, a few minutes the first time; rebuilt when a board source changes).
+# Without a C compiler the build fails and `hil` runs the pure modules: same results, slower.
+native: $(STAMP)
+	$(VENV)/bin/hil native build --if-needed || echo "hil: compiled tier not built; running pure Python"
+
+demo: native
 	$(VENV)/bin/hil run
 
 # Two passes: everything but the wall-clock-paced tests, spread over the cores (pytest-xdist),
 # then the paced ones alone, so that no other test takes the CPU they need to keep pace.
-test: $(STAMP)
+test: native
 	$(PY) -m pytest -q -n auto -m "not paced"
 	$(PY) -m pytest -q -m paced
 
@@ -26,4 +31,4 @@ bench: $(STAMP)
 	$(VENV)/bin/hil bench
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info .native

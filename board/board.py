@@ -24,6 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from mypy_extensions import mypyc_attr
+
 from board.kernel import Kernel
 
 __all__ = ["Board", "PortInfo", "Record"]
@@ -41,6 +43,7 @@ class PortInfo:
     direction: str  # "in", "out" or "inout"
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class Board:
     """Base of the FMU and IO boards (and of test boards): kernel plus exposed ports.
 

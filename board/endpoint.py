@@ -21,6 +21,8 @@ import marshal
 import traceback
 from typing import Any
 
+from mypy_extensions import mypyc_attr
+
 from board.board import Board, Record
 
 __all__ = ["Endpoint", "LocalHandle", "BoardDied", "build_board", "OP_ADVANCE", "OP_CALL",
@@ -33,6 +35,7 @@ _dumps = marshal.dumps
 _loads = marshal.loads
 
 
+@mypyc_attr(native_class=False)
 class BoardDied(RuntimeError):
     """A board stopped answering: its firmware raised, or its process died."""
 
@@ -101,7 +104,7 @@ class LocalHandle:
         self.endpoint = Endpoint(build_board(factory, kwargs))
         #: replies to advances posted and not yet waited for (a pipelined orchestrator posts
         #: the next quantum before waiting for the present one)
-        self._replies: list[bytes] = []
+        self._replies: list[bytes | None] = []
         hello = _loads(self.endpoint.hello())
         self.ports: list[tuple[str, str, str]] = hello[1][1]
         self.alive = True
@@ -116,7 +119,8 @@ class LocalHandle:
                                                           inputs))))
 
     def wait_advance(self) -> tuple[list[Record], int | None]:
-        reply = _loads(self._replies.pop(0))
+        raw = self._replies.pop(0)
+        reply: tuple = _loads(raw) if raw is not None else (R_ERROR, "board stopped")
         if reply[0] == R_OK:
             return reply[1], reply[2]
         self.alive = False

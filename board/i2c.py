@@ -34,6 +34,8 @@ from __future__ import annotations
 import errno
 from collections.abc import Sequence
 
+from mypy_extensions import mypyc_attr
+
 from board.kernel import Kernel
 
 __all__ = ["SMBUS_BLOCK_MAX", "I2cBus", "I2cFault", "I2cHandle", "I2cTarget"]
@@ -85,6 +87,7 @@ class I2cFault:
         return None
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class I2cTarget:
     """Base class for an I2C device model at one 7-bit address.
 
@@ -246,6 +249,7 @@ class I2cBus:
             if not acked:
                 status = self._nak(address=True)
             elif write:
+                assert target is not None
                 n_ack = target.write(t0 + clocks * 1_000_000_000 // hz, write)
                 if n_ack < len(write):
                     clocks += 9 * (n_ack + 1)  # the NAKed byte was clocked too
@@ -258,6 +262,7 @@ class I2cBus:
             if not acked:
                 status = self._nak(address=True)
             else:
+                assert target is not None
                 data = target.read(t0 + clocks * 1_000_000_000 // hz, read_len)
                 clocks += 9 * read_len
         if target is not None:

@@ -17,6 +17,8 @@ from __future__ import annotations
 import heapq
 from typing import Any, Callable
 
+from mypy_extensions import mypyc_attr
+
 __all__ = [
     "call_in_isr",
     "Kernel",
@@ -48,6 +50,7 @@ _heappush = heapq.heappush
 _heappop = heapq.heappop
 
 
+@mypyc_attr(native_class=False)
 class KernelError(RuntimeError):
     """A callback raised; the message names the callback and the virtual time."""
 

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import logging
 
+from mypy_extensions import mypyc_attr
+
 from board.kernel import Kernel
 
 __all__ = ["SpiBus", "SpiBusError", "SpiHandle", "SpiTarget", "SpiTransaction"]
@@ -40,10 +42,12 @@ log = logging.getLogger(__name__)
 _MODES = (0, 1, 2, 3)
 
 
+@mypyc_attr(native_class=False)
 class SpiBusError(RuntimeError):
     """The bus is used in a way the wires cannot do (two chip selects asserted at once)."""
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class SpiTarget:
     """Base class for an SPI device model.
 
@@ -345,7 +349,9 @@ class SpiHandle:
         """spidev ``xfer``/``xfer2``: a list of ints in, a list of ints out (CS held)."""
         return list(self.transfer(self._as_bytes(values, "xfer")))
 
-    xfer2 = xfer
+    def xfer2(self, values: list[int]) -> list[int]:
+        """spidev ``xfer2``: the same as :meth:`xfer` here (CS is held for the whole list)."""
+        return self.xfer(values)
 
     def writebytes(self, values: list[int]) -> None:
         """spidev ``writebytes``."""

@@ -325,7 +325,8 @@ class Timer:
             if not self._is_input(ch.n) and not self._oc_preload(ch.n):
                 self._ccr_active[ch.n - 1] = self._regs[f"CCR{ch.n}"]
 
-    _w_ccmr2 = _w_ccmr1
+    def _w_ccmr2(self, name: str, value: int, t: int) -> None:
+        self._w_ccmr1(name, value, t)
 
     def _w_cnt(self, name: str, value: int, t: int) -> None:
         if self._ep.counting:

@@ -56,7 +56,7 @@ class HostProfiler:
         added = 0
         for wq in platform.wq:
             for item in wq.items:
-                if id(item) in self._acc and getattr(item, "_host_prof", None) is not None:
+                if id(item) in self._acc and item.host_prof is not None:
                     continue
                 self._wrap(item)
                 added += 1
@@ -64,7 +64,7 @@ class HostProfiler:
 
     def _wrap(self, item: WorkItem) -> None:
         acc = [0.0]
-        orig = item.run
+        orig = item.entry
         clock = self.clock
 
         def run() -> None:
@@ -74,13 +74,13 @@ class HostProfiler:
             finally:
                 acc[0] += clock() - t0
 
-        item.run = run  # type: ignore[method-assign]
-        item._host_prof = acc  # type: ignore[attr-defined]
+        item.entry = run
+        item.host_prof = acc
         self._acc[id(item)] = acc
 
     def host_s(self, item: WorkItem) -> float | None:
         """Host seconds spent in ``item.run`` since it was wrapped, or None if not measured."""
-        acc = getattr(item, "_host_prof", None)
+        acc = item.host_prof
         return None if acc is None else acc[0]
 
 

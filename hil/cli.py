@@ -126,6 +126,12 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     return main(args)
 
 
+def _cmd_native(args: argparse.Namespace) -> int:
+    from hil import native
+
+    return native.main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil", description="Hardware-in-the-loop emulator of the PX4 FMUv2 and its IO board.")
@@ -215,6 +221,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out/campaign", help="output folder (report.md, report.json)")
     p.set_defaults(func=_cmd_campaign)
 
+    p = sub.add_parser("native", help="the compiled tier (mypyc): build, status, clean")
+    p.add_argument("native_command", nargs="?", choices=("build", "status", "clean"),
+                   default="status")
+    p.add_argument("--if-needed", action="store_true",
+                   help="build only if the tier is missing or older than the sources")
+    p.add_argument("--jobs", type=int, default=None, help="C compiler jobs (default: CPUs)")
+    p.set_defaults(func=_cmd_native)
+
     p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
     p.add_argument("--out", default=None, help="write to this file instead of stdout")
     p.set_defaults(func=_cmd_params)
@@ -226,6 +240,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         args = parser.parse_args(["run", *(argv or [])])
+    if argv is None and args.command != "native":
+        # The `hil` command (not a test calling main([...])) runs the compiled tier (hil native
+        # build) when it is there and matches the sources; this must come before anything
+        # imports a board package. HIL_PURE=1 keeps the sources.
+        from hil import native
+
+        native.activate()
     try:
         return args.func(args)
     except KeyboardInterrupt:

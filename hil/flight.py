@@ -23,6 +23,7 @@ from typing import Any
 
 from hil.accuracy import TruthSample, estimator_accuracy
 from hil.gcs import GcsClient
+from hil.native import active as native_active
 from hil.system import DEFAULT_QUANTUM_NS, SystemConfig, build_system
 
 __all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
@@ -198,6 +199,7 @@ def _summary(cfg: FlightConfig, rows: list[tuple], phases: list[dict], reached: 
     summary: dict[str, Any] = {
         "rtf": round(rtf, 2),
         "wall_s": round(wall, 1),
+        "compiled": native_active(),
         "log": str(log) if log else None,
         "landed_distance_m": round(landed_dist, 2),
         "max_alt_error_m": round(max_v, 3),
@@ -273,7 +275,10 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
           f" deg, tilt max {summary['tilt_error_max_deg']} deg, position rms "
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")
     print(f"  landed {summary['landed_distance_m']:.2f} m from home")
-    print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time)")
+    tier = ("compiled tier" if summary["compiled"]
+            else "pure Python; `hil native build` compiles the boards for ~1.5x")
+    print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time, "
+          f"{tier})")
     print(f"  log: {summary['log']}")
     if summary.get("plot"):
         print(f"  plot: {summary['plot']}")

@@ -24,6 +24,8 @@ from enum import Enum, IntEnum, IntFlag
 from functools import cached_property
 from typing import Protocol
 
+from mypy_extensions import mypyc_attr
+
 
 class Era(str, Enum):
     """Firmware era (io-and-rc.md "Firmware eras"). FMU and IO must agree on one."""
@@ -198,18 +200,22 @@ LAYOUT = PacketLayout()
 
 
 # --- errors the FMU side sees ------------------------------------------------------------------
+@mypyc_attr(native_class=False)
 class ProtocolError(Exception):
     """A reply the FMU driver cannot use; the driver counts it and retries (§1.7)."""
 
 
+@mypyc_attr(native_class=False)
 class LengthError(ProtocolError):
     """Fewer bytes than the header (or the header's count) requires."""
 
 
+@mypyc_attr(native_class=False)
 class CrcError(ProtocolError):
     """The reply's CRC-8 does not match its contents."""
 
 
+@mypyc_attr(native_class=False)
 class BadCodeError(ProtocolError):
     """Reply code 0xC0, which the IO never sends."""
 

@@ -96,13 +96,14 @@ class PwmLimit:
             return [disarmed_pwm[i] for i in range(n)]
         if self.state is LimitState.RAMP:
             progress = (now_us - self.time_armed_us) * 10000 // self.timing.ramp_time_us
-            lows = []
+            ramp: list[int] = []
             for i in range(n):
                 if disarmed_pwm[i] > 0:
                     d = min(disarmed_pwm[i], min_pwm[i])
-                    lows.append((d + (min_pwm[i] - d) * progress // 10000) & 0xFFFF)
+                    ramp.append((d + (min_pwm[i] - d) * progress // 10000) & 0xFFFF)
                 else:
-                    lows.append(min_pwm[i])
+                    ramp.append(min_pwm[i])
+            lows: Sequence[int] = ramp
         else:
             lows = min_pwm
         # _to_uint16 and _half inlined (this runs for every output on every 1 ms IO pass);

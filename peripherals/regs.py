@@ -32,10 +32,12 @@ rest.
 
 from __future__ import annotations
 
-import logging
 import dataclasses
+import logging
 from dataclasses import dataclass, field
 from typing import Callable, Iterable
+
+from mypy_extensions import mypyc_attr
 
 __all__ = ["Field", "Reg", "RegisterFile", "RegisterMapError"]
 
@@ -44,6 +46,7 @@ log = logging.getLogger(__name__)
 ACCESS = ("rw", "r", "w", "rc")
 
 
+@mypyc_attr(native_class=False)
 class RegisterMapError(ValueError):
     """A register table that cannot describe a real chip (overlap, bad width, bad access)."""
 

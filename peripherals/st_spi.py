@@ -41,9 +41,9 @@ import numpy as np
 from board.gpio import Pin
 from board.kernel import PRIO_HW, Kernel
 from board.spi import SpiTarget
+from firmware.lib.rotation import board_to_sensor
 from peripherals.faults import FaultState
 from peripherals.regs import RegisterFile
-from firmware.lib.rotation import board_to_sensor
 
 __all__ = [
     "BOOT_NS",
@@ -318,7 +318,7 @@ class StSpiTarget(SpiTarget):
     ``_power_on()`` (reset the behaviour behind the registers).
     """
 
-    max_clock_hz = 10_000_000
+    max_clock_hz: int | None = 10_000_000
     WHO_AM_I = 0x0F
 
     def __init__(self, kernel: Kernel, name: str, rng: np.random.Generator,

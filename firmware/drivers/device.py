@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mypy_extensions import mypyc_attr
+
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT, PC_ELAPSED, PC_INTERVAL
 from firmware.platform.workqueue import WorkItem
@@ -38,6 +40,7 @@ class DeviceId:
         return cls(value & 0x7, (value >> 3) & 0x1F, (value >> 8) & 0xFF, (value >> 16) & 0xFF)
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class SensorDriver(WorkItem):
     """Base of sensor drivers: perf counters, start/stop/status, messages in PX4's words."""
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import struct
 
+from mypy_extensions import mypyc_attr
+
 __all__ = ["BsonError", "encode", "decode", "INT32", "DOUBLE"]
 
 DOUBLE, STRING, BINDATA, BOOL, INT32, INT64, END, ERASED = 0x01, 0x02, 0x05, 0x08, 0x10, 0x12, \
@@ -18,6 +20,7 @@ DOUBLE, STRING, BINDATA, BOOL, INT32, INT64, END, ERASED = 0x01, 0x02, 0x05, 0x0
 MAX_NAME = 32
 
 
+@mypyc_attr(native_class=False)
 class BsonError(ValueError):
     pass
 

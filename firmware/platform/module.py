@@ -19,6 +19,8 @@ import importlib
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from mypy_extensions import mypyc_attr
+
 from firmware.platform.uorb import Publication, Subscription, SubscriptionCallback
 from firmware.platform.workqueue import WorkItem
 
@@ -37,14 +39,17 @@ __all__ = [
 ]
 
 
+@mypyc_attr(native_class=False)
 class ModuleError(Exception):
     """A module could not be loaded, started or commanded; the message says why."""
 
 
+@mypyc_attr(native_class=False)
 class UsageError(ModuleError):
     """Bad arguments to a module command: the registry prints the message and the usage."""
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class ModuleBase:
     """Base of every module and driver started from the shell.
 
@@ -108,8 +113,10 @@ class ModuleBase:
         self.work_items.append(item)
         return item
 
-    def param(self, name: str) -> int | float:
-        """A parameter's current value (the system's parameter set must declare it)."""
+    def param(self, name: str) -> Any:
+        """A parameter's current value (the system's parameter set must declare it): an int or
+        a float. Typed Any, not ``int | float``, which compiled code (hil.native) would turn
+        into a float."""
         if self.system.params is None:
             raise ModuleError(f"{self.name}: no parameters on this system (wanted {name})")
         return self.system.params[name]
@@ -223,14 +230,15 @@ class _ModuleWorkItem(WorkItem):
         super().__init__(module.platform, module.name, module.WQ)
         self.cpu_cost_ns = module.CPU_COST_NS
         self.module = module
-        # The dispatcher calls ``item.run()``: the module's bound method as an instance
-        # attribute saves a call layer per run.
-        self.run = module.run  # type: ignore[method-assign]
+        # The dispatcher calls ``item.entry()``: the module's bound method saves a call layer
+        # per run.
+        self.entry = module.run
 
     def run(self) -> None:
         self.module.run()
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class WorkItemModule(ModuleBase):
     """A module that is one scheduled work item (PX4's ``ModuleBase + ScheduledWorkItem``).
 
@@ -329,9 +337,9 @@ class ModuleRegistry:
                 why = (f"no module {mod_name}" if exc.name and mod_name.startswith(exc.name)
                        else f"{mod_name}: {exc}")
                 raise ModuleError(f"{name}: not available in this build ({why})") from None
-            except ImportError as exc:
+            except ImportError as exc2:
                 raise ModuleError(f"{name}: not available in this build "
-                                  f"({mod_name}: {exc})") from None
+                                  f"({mod_name}: {exc2})") from None
             cls = getattr(module, cls_name, None)
             if cls is None:
                 raise ModuleError(f"{name}: not available in this build "
@@ -396,12 +404,12 @@ class ModuleRegistry:
             for line in self._usage(name):
                 self._print(line)
             return 1
-        except ModuleError as exc:
-            msg = str(exc)
+        except ModuleError as exc2:
+            msg = str(exc2)
             self._err(msg if msg.startswith(f"{name}:") else f"{name}: start failed: {msg}")
             return 1
-        except Exception as exc:  # noqa: BLE001 - a module bug must not take the shell down
-            self._err(f"{name}: start failed: {type(exc).__name__}: {exc}")
+        except Exception as exc3:  # noqa: BLE001 - a module bug must not take the shell down
+            self._err(f"{name}: start failed: {type(exc3).__name__}: {exc3}")
             return 1
         self._instances[name] = inst
         if self.system.profiler is not None:
@@ -476,8 +484,8 @@ class ModuleRegistry:
         if inst is None:
             try:
                 self.load(name)
-            except ModuleError as exc:
-                self._err(str(exc))
+            except ModuleError as exc3:
+                self._err(str(exc3))
                 return 1
             self._err(f"{name}: not running")
             return 1
@@ -487,8 +495,8 @@ class ModuleRegistry:
             self._err(f"{name}: {exc}")
             inst.print_usage()
             return 1
-        except Exception as exc:  # noqa: BLE001 - a module bug must not take the shell down
-            self._err(f"{name} {verb}: failed: {type(exc).__name__}: {exc}")
+        except Exception as exc2:  # noqa: BLE001 - a module bug must not take the shell down
+            self._err(f"{name} {verb}: failed: {type(exc2).__name__}: {exc2}")
             return 1
 
     def instances(self) -> dict[str, Any]:

@@ -27,7 +27,9 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Iterable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
+
+from mypy_extensions import mypyc_attr
 
 from firmware.platform import bson
 
@@ -41,6 +43,7 @@ INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 6, 9
 
 
+@mypyc_attr(native_class=False)
 class ParamError(ValueError):
     pass
 
@@ -207,7 +210,7 @@ class Params:
         self.values: dict[str, int | float] = {n: d.default for n, d in self.defs.items()}
         self.storage = storage
         self.autosave_delay_us = autosave_delay_us
-        self._autosave = None
+        self._autosave: Any = None
         self._pub = platform.orb.advertise("parameter_update")
         self._msg = platform.orb.new("parameter_update")
         self.set_count = 0

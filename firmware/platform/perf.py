@@ -54,8 +54,8 @@ class PerfCounter:
         self._n = 0
         self.min_us = math.inf
         self.max_us = 0.0
-        self._sum = 0
-        self._sumsq = 0
+        self._sum: float = 0
+        self._sumsq: float = 0
         self.total_us = 0
 
     def _sample(self, value_us: float) -> None:

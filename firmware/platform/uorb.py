@@ -306,7 +306,8 @@ class SubscriptionCallback(Subscription):
 
     def unregister_callback(self) -> None:
         if self._registered:
-            self.node.callbacks.remove(self._cb)
+            if self._cb is not None:
+                self.node.callbacks.remove(self._cb)
             self._cb = None
             self._registered = False
 

@@ -16,7 +16,9 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 from heapq import heappush as _heappush
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
+
+from mypy_extensions import mypyc_attr
 
 from board.kernel import PRIO_THREAD, Kernel, KernelError
 
@@ -98,7 +100,7 @@ class WorkQueue:
         item = q.popleft()
         item._queued = False
         try:
-            item.run()
+            item.entry()
         except KernelError:
             raise
         except Exception as exc:
@@ -143,6 +145,7 @@ class WorkQueueManager:
         return iter(sorted(self.queues.values(), key=lambda q: -q.config.priority))
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class WorkItem:
     """Base class of drivers and modules: override :meth:`run`.
 
@@ -161,6 +164,12 @@ class WorkItem:
         self._hrt_call: HrtCall | None = None
         self.run_count = 0
         self.busy_ns_total = 0
+        #: What the dispatcher calls: ``run`` itself, unless the owner points it elsewhere (a
+        #: module's bound ``run``, a profiling wrapper). An attribute, not a reassigned
+        #: method, so that compiled classes (hil.native) can hold it too.
+        self.entry: Callable[[], None] = self.run
+        #: Host-time accumulator of a profiled item (firmware.system), else None.
+        self.host_prof: list[float] | None = None
 
     def run(self) -> None:  # pragma: no cover - abstract
         raise NotImplementedError(f"{type(self).__name__}.run")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from mypy_extensions import mypyc_attr
+
 from firmware.system import PathError
 
 if TYPE_CHECKING:
@@ -56,6 +58,7 @@ def cmd_false(sh: Shell, argv: list[str]) -> int:
     return 1
 
 
+@mypyc_attr(native_class=False)
 class _TestError(ValueError):
     pass
 
@@ -292,8 +295,8 @@ def cmd_cat(sh: Shell, argv: list[str]) -> int:
         except PathError as exc:
             sh.error("cat", str(exc))
             status = 1
-        except OSError as exc:
-            sh.error("cat", f"{path}: {exc.strerror or exc}")
+        except OSError as exc2:
+            sh.error("cat", f"{path}: {exc2.strerror or exc2}")
             status = 1
     return status
 

@@ -191,8 +191,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(export_qgc(params))
-        except OSError as exc:
-            sh.error("param export", f"{args[0]}: {exc.strerror or exc}")
+        except OSError as exc2:
+            sh.error("param export", f"{args[0]}: {exc2.strerror or exc2}")
             return 1
         sh.print(f"exported {len(params.names)} parameters to {args[0]}")
         return 0
@@ -202,8 +202,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
             return 1
         try:
             text = path.read_text()
-        except OSError as exc:
-            sh.error("param import", f"{args[0]}: {exc.strerror or exc}")
+        except OSError as exc2:
+            sh.error("param import", f"{args[0]}: {exc2.strerror or exc2}")
             return 1
         count, problems = import_qgc(params, text)
         for p in problems:

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mypy_extensions import mypyc_attr
+
 from firmware.shell.parser import ShellSyntaxError, Word, split_statements, tokenize
 
 if TYPE_CHECKING:
@@ -45,6 +47,7 @@ class Command:
     summary: str
 
 
+@mypyc_attr(native_class=False)
 class _ExitScript(Exception):
     def __init__(self, status: int) -> None:
         self.status = status
@@ -159,8 +162,8 @@ class Shell:
         except PathError as exc:
             self.error("sh", str(exc))
             return 1
-        except OSError as exc:
-            self.error("sh", f"cannot open {path}: {exc.strerror or exc}")
+        except OSError as exc2:
+            self.error("sh", f"cannot open {path}: {exc2.strerror or exc2}")
             return 1
         return self._run_text(text, path, list(args))
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 
+from mypy_extensions import mypyc_attr
+
 __all__ = ["OPERATORS", "ShellSyntaxError", "Word", "split_statements", "tokenize"]
 
 OPERATORS = (";", "&&", "||")
@@ -20,6 +22,7 @@ _VAR = re.compile(r"\$(?:\{([A-Za-z_][A-Za-z0-9_]*|[0-9]+|[?#])\}|([A-Za-z_][A-Z
                   r"|([0-9?#]))")
 
 
+@mypyc_attr(native_class=False)
 class ShellSyntaxError(ValueError):
     """A line that cannot be split into words (an unterminated quote, a dangling operator)."""
 

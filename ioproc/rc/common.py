@@ -15,6 +15,8 @@ import math
 import struct
 from collections.abc import Iterable
 
+from mypy_extensions import mypyc_attr
+
 _F32 = struct.Struct("<f")
 
 #: Output slots the IO's RAW_RC page holds (PX4IO_RC_INPUT_CHANNELS).
@@ -71,6 +73,7 @@ def crc16_xmodem(data: Iterable[int], crc: int = 0) -> int:
     return crc
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class RcDecoder:
     """Base of the byte-stream decoders (S.BUS, DSM, SUMD, ST24).
 

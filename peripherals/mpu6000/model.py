@@ -97,7 +97,7 @@ class Mpu6000(SpiTarget):
     ``"gyro"`` (rad/s), ``"accel"`` (m/s^2) or ``"both"``.
     """
 
-    max_clock_hz = DATA_CLOCK_LIMIT_HZ
+    max_clock_hz: int | None = DATA_CLOCK_LIMIT_HZ
 
     def __init__(self, kernel: Kernel, env: Environment, rng: np.random.Generator,
                  name: str = "mpu6000", drdy_pin: Pin | None = None, product_id: int = 0x58,
@@ -418,6 +418,8 @@ class Mpu6000(SpiTarget):
 
     def _drive_pin(self, drive: int | None) -> None:
         pin = self.drdy_pin
+        if pin is None:
+            return
         if drive is None:
             pin.release()
         elif drive:
@@ -465,7 +467,9 @@ class Mpu6000(SpiTarget):
         self._int_active = True
         end = self._pulse_end_ns = self.kernel.now_ns + INT_PULSE_NS
         # Not sync: the overflow event still re-arms after this (rare: a queued EXTI is fine).
-        self.drdy_pin.pulse(self._on_drive, self._off_drive, end)
+        pin = self.drdy_pin
+        if pin is not None:
+            pin.pulse(self._on_drive, self._off_drive, end)
 
     def _schedule_int(self) -> None:
         """(Re)arm the kernel events that move the INT pin; none when nothing can be seen."""
@@ -509,7 +513,7 @@ class Mpu6000(SpiTarget):
             return
         self._int_active = True
         end = self._pulse_end_ns = now + INT_PULSE_NS
-        self.drdy_pin.pulse(self._on_drive, self._off_drive, end, True)
+        self.drdy_pin.pulse(self._on_drive, self._off_drive, end, True)  # type: ignore[union-attr]
 
     def _on_overflow(self) -> None:
         self._ovf_entry = None

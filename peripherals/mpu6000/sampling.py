@@ -245,7 +245,7 @@ class SampleEngine:
             return _PACK7(*last), _packer(len(flat))(*flat)
 
         # Gyroscope: every sample is new.
-        gyro = []
+        gyro: list[tuple[int, int, int]] = []
         append = gyro.append
         for _ in range(m):
             p *= a
@@ -258,7 +258,7 @@ class SampleEngine:
         self._g_state = (gx + p * dx, gy + p * dy, gz + p * dz)
 
         if self._standby or faults.frozen or faults.random_data or faults.saturate:
-            rows = [ac + (tc,) + g for ac, g in zip(accel, gyro, strict=True)]
+            rows: list[tuple[int, ...]] = [ac + (tc,) + g for ac, g in zip(accel, gyro, strict=True)]
             rows = self._faults(rows, faults)
             self._last = rows[-1]
             regs = _PACK7(*rows[-1])

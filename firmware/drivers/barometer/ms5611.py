@@ -23,6 +23,8 @@ conversion.
 
 from __future__ import annotations
 
+from typing import Any
+
 from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
 from firmware.platform import Platform
@@ -118,7 +120,7 @@ class Ms5611Driver(SensorDriver):
         self._last_d1: int | None = None
         self._same_d1 = 0
         self._last_p: float | None = None
-        self._pub = None
+        self._pub: Any = None
         self._msg = platform.orb.new("sensor_baro")
         self.last_pressure_pa = float("nan")
         self.last_temperature_c = float("nan")

@@ -22,6 +22,7 @@ import calendar
 import math
 from collections.abc import Generator
 from dataclasses import dataclass
+from typing import Any
 
 from board.uart import Uart, UartConfig
 from firmware.drivers.device import BUS_TYPE_SERIAL, DeviceId, SensorDriver
@@ -88,7 +89,7 @@ class GpsDriver(SensorDriver):
         self.last_pvt: NavPvt | None = None
         self._wait: _Wait | None = None
         self._proc: Generator[_Wait, bool | None, None] | None = None
-        self._pub = None
+        self._pub: Any = None
         self._msg = platform.orb.new("sensor_gps")
         self._msg.heading = self._msg.heading_offset = math.nan
         self._last_pvt_us = 0

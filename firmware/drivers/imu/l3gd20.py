@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
+from typing import Any
 
 from board.gpio import Pin
 from board.spi import SpiHandle
@@ -115,7 +116,7 @@ class L3gd20Driver(SensorDriver):
         self.perf_drdy_timeout = perf.alloc(PC_COUNT, f"{name}: DRDY timeout")
         self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
         self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
-        self._pub = None
+        self._pub: Any = None
         self._msg = platform.orb.new("sensor_gyro")
         self._state = STATE_RESET
         self._whoami = 0xD4

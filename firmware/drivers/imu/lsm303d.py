@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
+from typing import Any
 
 from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
@@ -118,8 +119,8 @@ class Lsm303dDriver(SensorDriver):
         self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
         self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
         orb = platform.orb
-        self._accel_pub = None
-        self._mag_pub = None
+        self._accel_pub: Any = None
+        self._mag_pub: Any = None
         self._accel_msg = orb.new("sensor_accel")
         self._mag_msg = orb.new("sensor_mag")
         self._state = STATE_RESET

@@ -187,7 +187,7 @@ class Mpu6000Driver(SensorDriver):
         self.schedule_now()
 
     def stop(self) -> None:
-        if self._attached:
+        if self._attached and self.drdy_pin is not None:
             self.drdy_pin.detach_interrupt()
             self._attached = False
         self.state = RESET

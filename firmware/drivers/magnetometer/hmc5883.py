@@ -21,6 +21,8 @@ stop the driver (PX4 also only reports it).
 
 from __future__ import annotations
 
+from typing import Any
+
 from board.i2c import I2cHandle
 from firmware.drivers.device import BUS_TYPE_I2C, DeviceId, SensorDriver
 from firmware.platform import Platform
@@ -75,7 +77,7 @@ class Hmc5883Driver(SensorDriver):
         self._naks = 0
         self._last_raw: tuple[int, int, int] | None = None
         self._same = 0
-        self._pub = None
+        self._pub: Any = None
         self._msg = platform.orb.new("sensor_mag")
         self.last_field_ga = (float("nan"),) * 3
 

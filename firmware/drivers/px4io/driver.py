@@ -63,9 +63,9 @@ MIXER_CHUNK_TRIES = 30  #: mixer_send retries per chunk, 333 us apart (§2.11)
 MIXER_RETRY_GAP_US = 333
 
 # Plain-int copies of the bit enums: IntFlag arithmetic costs ~1 us a go in the 50 Hz path.
-_SF = SimpleNamespace(**{m.name: int(m) for m in StatusFlags})
-_A = SimpleNamespace(**{m.name: int(m) for m in ArmingA})
-_AL = SimpleNamespace(**{m.name: int(m) for m in Alarms})
+_SF = SimpleNamespace(**{str(m.name): int(m) for m in StatusFlags})
+_A = SimpleNamespace(**{str(m.name): int(m) for m in ArmingA})
+_AL = SimpleNamespace(**{str(m.name): int(m) for m in Alarms})
 _RC_OK = int(RawRcFlags.RC_OK)
 _RC_FAILSAFE = int(RawRcFlags.FAILSAFE)
 #: px4io_status boolean fields and the bit each one shows

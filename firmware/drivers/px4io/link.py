@@ -289,9 +289,9 @@ class IoLink:
             self.pc_crcerrs.count()
             self._attempt_failed(str(exc))
             return None
-        except ProtocolError as exc:
+        except ProtocolError as exc2:
             self.pc_protoerrs.count()
-            self._attempt_failed(str(exc))
+            self._attempt_failed(str(exc2))
             return None
         if reply.code is ReplyCode.CORRUPT:
             self.pc_protoerrs.count()

@@ -18,6 +18,8 @@ from __future__ import annotations
 import struct
 from typing import Any, BinaryIO
 
+from mypy_extensions import mypyc_attr
+
 from firmware.platform.msgdef import PRIMITIVES, MessageDef, MessageRegistry
 
 __all__ = [
@@ -55,6 +57,7 @@ _INFO_CODES = {"int8_t": "b", "uint8_t": "B", "int16_t": "h", "uint16_t": "H",
                "float": "f", "double": "d", "bool": "?"}
 
 
+@mypyc_attr(native_class=False)
 class UlogError(ValueError):
     """A message that cannot be encoded, or one written in the wrong section."""
 
@@ -215,11 +218,13 @@ class UlogWriter:
         """'M' message: a value split over several messages (``is_continued`` on the rest)."""
         self._msg("M", bytes((1 if is_continued else 0,)) + _key_value(key, value, type_name))
 
-    def write_parameter(self, name: str, value: float) -> None:
-        """'P' message: initial value in the definitions section, a change in the data section."""
+    def write_parameter(self, name: str, value: Any) -> None:
+        """'P' message: initial value in the definitions section, a change in the data section.
+        ``value`` is an int (int32_t) or a float: typed Any, since compiled code (hil.native)
+        would make a ``float`` argument a float."""
         self._msg("P", _key_value(name, value, _param_type(name, value)))
 
-    def write_parameter_default(self, name: str, value: float, default_types: int) -> None:
+    def write_parameter_default(self, name: str, value: Any, default_types: int) -> None:
         """'Q' message: bit 0 system-wide default, bit 1 default of the current configuration."""
         self._definition("parameter default")
         self._msg("Q", bytes((default_types & 0xFF,))

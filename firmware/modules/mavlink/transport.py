@@ -19,6 +19,8 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
+from mypy_extensions import mypyc_attr
+
 __all__ = ["Transport", "TransportError", "UartTransport", "UdpTransport"]
 
 #: what PX4's serial driver buffers for transmission; a message that does not fit is dropped
@@ -28,6 +30,7 @@ UART_TX_BUFFER = 1024
 UDP_RX_QUEUE = 64
 
 
+@mypyc_attr(native_class=False)
 class TransportError(ValueError):
     """The device or port named on the command line does not exist on this board."""
 

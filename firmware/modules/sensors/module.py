@@ -306,7 +306,8 @@ class SensorsModule(WorkItemModule):
             self._next_check = now + CHECK_INTERVAL_US
             self._check(now)
             cost += self.COST_CHECK_NS
-        item.cpu_cost_ns = cost
+        if item is not None:
+            item.cpu_cost_ns = cost
 
     # -- gyro / accel ----------------------------------------------------------------------------
 

@@ -1,0 +1,106 @@
+"""The compiled tier (hil.native): freshness rules, and the same bytes as the pure modules.
+
+The equivalence test needs the tier built: `make test` builds it first (`hil native build
+--if-needed`); run alone, the test builds it (a few minutes) rather than skip.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hil import native
+
+
+def _tree(root: Path) -> None:
+    for pkg in native.PACKAGES:
+        (root / pkg).mkdir(parents=True)
+        (root / pkg / "__init__.py").write_text("")
+    (root / "board" / "kernel.py").write_text("X = 1\n")
+
+
+def test_status_absent_then_stale_on_any_source_edit(tmp_path: Path) -> None:
+    _tree(tmp_path)
+    state, why = native.status(tmp_path)
+    assert state == "absent" and "hil native build" in why
+    d = native.native_dir(tmp_path)
+    d.mkdir(parents=True)
+    (d / "manifest.json").write_text(json.dumps({"digest": native._digest(tmp_path)}))
+    assert native.status(tmp_path)[0] == "fresh"
+    (tmp_path / "board" / "kernel.py").write_text("X = 2\n")  # an edit: the tier is stale
+    state, why = native.status(tmp_path)
+    assert state == "stale" and "changed" in why
+    (d / "manifest.json").write_text("{not json")
+    assert native.status(tmp_path)[0] == "stale"
+
+
+def test_activate_refuses_stale_and_respects_hil_pure(tmp_path: Path, monkeypatch,
+                                                      capsys) -> None:
+    _tree(tmp_path)
+    d = native.native_dir(tmp_path)
+    d.mkdir(parents=True)
+    (d / "manifest.json").write_text(json.dumps({"digest": "0" * 64}))
+    path_before = list(sys.path)
+    assert native.activate(tmp_path) is False
+    assert "pure Python modules" in capsys.readouterr().err
+    (d / "manifest.json").write_text(json.dumps({"digest": native._digest(tmp_path)}))
+    monkeypatch.setenv("HIL_PURE", "1")
+    assert native.activate(tmp_path) is False
+    monkeypatch.delenv("HIL_PURE")
+    # In this process the pure board package is already imported: too late, and it says so.
+    import board  # noqa: F401
+
+    assert native.activate(tmp_path) is False
+    assert "imported before" in capsys.readouterr().err
+    assert sys.path == path_before
+
+
+def test_compiled_list_covers_the_hot_path() -> None:
+    for hot in ("board/kernel.py", "board/spi.py", "peripherals/mpu6000/sampling.py",
+                "firmware/platform/uorb.py", "firmware/platform/workqueue.py",
+                "firmware/drivers/imu/mpu6000.py", "ioproc/firmware/mixer_tick.py"):
+        assert hot in native.COMPILED
+    assert not set(native.COMPILED) & native.EXCLUDED
+
+
+def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "HIL_PURE")}
+    env.update(env_extra)
+    out = subprocess.run([sys.executable, "-m", "hil.native", str(tmp / name), str(seconds)],
+                         cwd=tmp, env=env, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_compiled_and_pure_write_byte_identical_logs(tmp_path: Path) -> None:
+    """Ten virtual seconds of the whole system (drivers, sensors, estimator, controllers,
+    px4io and the IO, logger with the raw sensors), compiled and pure: same log bytes."""
+    if native.status()[0] != "fresh":
+        native.build()
+    assert native.status()[0] == "fresh"
+    compiled = _check(tmp_path, "compiled", {"PYTHONPATH": str(native.native_dir())}, 10.0)
+    pure = _check(tmp_path, "pure", {}, 10.0)
+    assert compiled["compiled"] is True and not compiled["kernel"].endswith(".py")
+    assert pure["compiled"] is False and pure["kernel"].endswith(".py")
+    assert compiled["logs"] and compiled["log_bytes"][0] > 100_000
+    assert compiled["logs"] == pure["logs"]
+
+
+@pytest.mark.parametrize("argv", [["native", "status"], ["native", "bogus"]])
+def test_cli_native_commands(argv: list[str], capsys) -> None:
+    from hil.cli import main
+
+    if argv[1] == "bogus":
+        with pytest.raises(SystemExit):
+            main(argv)
+        assert "invalid choice" in capsys.readouterr().err
+        return
+    rc = main(argv)
+    out = capsys.readouterr().out
+    assert out.split(":")[0] in ("fresh", "stale", "absent")
+    assert rc == (0 if out.startswith("fresh") else 1)
