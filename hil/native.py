@@ -65,6 +65,11 @@ EXCLUDED: frozenset[str] = frozenset({
     "firmware/modules/mavlink/params.py", "firmware/drivers/px4io/params.py", "board/adc.py",
     # functools.cached_property is a plain property on a compiled class (no instance dict)
     "ioproc/protocol.py", "board/uart_line.py",
+    # bus.uart_noise swaps a Uart's receive through the instance dict (board/uart_fault.py)
+    "board/uart.py",
+    # the DSM decoder loses frame sync compiled (rc_dsm_out_of_range, rc_frame_loss_burst
+    # never see RC); not understood yet, so it stays Python
+    "ioproc/rc/dsm.py",
 })
 
 

@@ -8,7 +8,6 @@ item) needs a host clock injected into the :class:`System`; firmware never reads
 
 from __future__ import annotations
 
-import weakref
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -31,7 +30,9 @@ def cmd_top(sh: Shell, argv: list[str]) -> int:
     p = system.platform
     now = p.kernel.now_ns
     st = system.shell_state.setdefault("top", {"t_ns": 0, "host_t": None,
-                                               "items": weakref.WeakKeyDictionary(),
+                                               # keyed by the item: its queue holds it anyway
+                                               # (and compiled items take no weak references)
+                                               "items": {},
                                                "queues": {}})
     dt_ns = now - st["t_ns"]
     prof = system.profiler
