@@ -43,7 +43,8 @@ COMPILED_PACKAGES = ("board", "peripherals", "firmware", "ioproc")
 #: not mirrored: they import from the sources, and editing them never makes the tier stale.
 PACKAGES = COMPILED_PACKAGES
 EXCLUDED: frozenset[str] = frozenset({
-    # set-up and parsing code that runs once, typed too loosely for mypyc
+    # mypy reports type errors here that are not fixed yet (set-up and parsing code, the
+    # controllers, commander, navigator, mavlink, logger, ekf2): the next modules to type
     "board/specs.py", "firmware/drivers/gps/ubx.py", "firmware/modules/dataman/store.py",
     "ioproc/firmware/bits.py", "ioproc/mixer/parser.py", "firmware/modules/logger/module.py",
     "firmware/modules/logger/logger.py", "firmware/drivers/gps/gps.py",
@@ -58,6 +59,8 @@ EXCLUDED: frozenset[str] = frozenset({
     "board/fmu_v2.py", "ioproc/pages.py", "ioproc/board.py", "firmware/modules/ekf2/core.py",
     "firmware/modules/ekf2/module.py",
     "ioproc/rc/sumd.py", "ioproc/rc/st24.py",  # a mypyc internal error (bytearray loops)
+    # the build failed on these (perf, system, ms5611) or they need what compiled classes lack:
+    # a weak reference (fm25v01's finalizer), a second compiled base (commander's mixin)
     "firmware/platform/perf.py", "firmware/system.py", "peripherals/fm25v01.py",
     "peripherals/ms5611.py", "firmware/modules/commander/commands.py",
     # parameter values are ``int | float``, which mypyc would store as floats
@@ -225,7 +228,7 @@ def build(root: Path = ROOT, jobs: int | None = None, verbose: bool = False) -> 
     (work / "mypy.ini").write_text(
         "[mypy]\nignore_missing_imports = True\nfollow_imports = silent\n")
     proc = subprocess.run([sys.executable, "-c", script], cwd=work, capture_output=not verbose,
-                          text=True)
+                          text=True, check=False)
     if proc.returncode != 0:
         out = (proc.stdout or "") + (proc.stderr or "")
         errors = [ln for ln in out.splitlines() if ": error:" in ln]
