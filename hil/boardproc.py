@@ -26,7 +26,7 @@ from typing import Any
 
 from board.endpoint import OP_ADVANCE, OP_CALL, OP_STOP, R_ERROR, R_OK, R_RESULT, BoardDied
 from board.endpoint import Endpoint, build_board
-from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied
+from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied, SpinPolicy
 
 __all__ = ["ProcessHandle", "board_process_main", "resolve_kwargs"]
 
@@ -95,11 +95,14 @@ class ProcessHandle:
     """The orchestrator's handle on a board process (same interface as ``LocalHandle``)."""
 
     def __init__(self, name: str, factory: str, kwargs: dict[str, Any] | None = None,
-                 start_method: str = "spawn", reply_timeout_s: float | None = 120.0) -> None:
+                 start_method: str = "spawn", reply_timeout_s: float | None = 120.0,
+                 spin: SpinPolicy | None = None) -> None:
         self.name = name
         self.reply_timeout_s = reply_timeout_s
         ctx = multiprocessing.get_context(start_method)
-        self._ch, spec = ChannelPair.create(capacity=CHANNEL_CAPACITY, ctx=ctx)
+        # ``spin``: how both ends wait for a message (hil.ipc.SpinPolicy; None: its default)
+        self._ch, spec = ChannelPair.create(capacity=CHANNEL_CAPACITY, ctx=ctx, spin=spin,
+                                            child_spin=spin)
         self.proc = ctx.Process(target=board_process_main, name=f"hil-{name}",
                                 args=(spec, name, factory, dict(kwargs or {})), daemon=True)
         self.proc.start()

@@ -19,7 +19,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
                        mode="local" if args.one_process else "process",
                        timeout_s=args.duration, progress=not args.json,
-                       pipeline=not args.no_pipeline)
+                       pipeline=not args.no_pipeline, pin_cpus=not args.no_pin)
     return main(cfg, as_json=args.json)
 
 
@@ -153,6 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="plain lockstep: a board waits for the orchestrator every quantum "
                         "(default: lookahead, boards hold the next quantum; records between "
                         "boards up to two quanta late)")
+    p.add_argument("--no-pin", action="store_true",
+                   help="leave CPU placement to the OS (default: the FMU process gets a CPU "
+                        "of its own, the orchestrator and the IO share the others)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
 

@@ -49,6 +49,7 @@ class FlightConfig:
     plot: bool = True
     keep_truth: bool = False            # return the recorded truth in the summary ("truth")
     pipeline: bool = True               # lookahead lockstep (see Orchestrator._step_pipelined)
+    pin_cpus: bool = True               # the FMU on a CPU of its own (Orchestrator's CpuPlan)
 
 
 class _Recorder:
@@ -91,7 +92,8 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
               "RTL_DESCEND_ALT": cfg.altitude_m, **cfg.params}
     scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
-                        params=params, gcs=True, pipeline=cfg.pipeline)
+                        params=params, gcs=True, pipeline=cfg.pipeline,
+                        pin_cpus=cfg.pin_cpus)
     orch, dev = build_system(scfg)
     gcs: GcsClient = dev["gcs"]
     world = dev["world"].world
@@ -158,8 +160,11 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         else:
             raise RuntimeError(f"flight did not finish within {cfg.timeout_s} virtual s")
         rtf = orch.rtf
+        cpus = orch.cpu_plan.describe() if orch.cpu_plan is not None else None
     wall = time.perf_counter() - wall0
-    return _summary(cfg, rec.rows, phases, reached, home, rtf, wall)
+    summary = _summary(cfg, rec.rows, phases, reached, home, rtf, wall)
+    summary["cpus"] = cpus
+    return summary
 
 
 def _estimator_ready(gcs: GcsClient) -> bool:
@@ -277,8 +282,9 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
     print(f"  landed {summary['landed_distance_m']:.2f} m from home")
     tier = ("compiled tier" if summary["compiled"]
             else "pure Python; `hil native build` compiles the boards, ~1.3-1.5x faster")
+    cpus = summary.get("cpus") or "CPUs not pinned"
     print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time, "
-          f"{tier})")
+          f"{tier}; {cpus})")
     print(f"  log: {summary['log']}")
     if summary.get("plot"):
         print(f"  plot: {summary['plot']}")

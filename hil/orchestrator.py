@@ -22,6 +22,7 @@ Results never depend on pacing: pacing only sleeps between quanta (wall clock, a
 from __future__ import annotations
 
 import marshal
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
@@ -32,6 +33,11 @@ from board.wiring import WORLD, Wire
 __all__ = ["BoardSpec", "Orchestrator", "BoardDied", "TraceWriter"]
 
 NS_PER_S = 1_000_000_000
+#: spin budget of every channel when the FMU has a CPU of its own (Orchestrator._spin_policy).
+#: Still adaptive: a run whose waits average more than this blocks instead. Measured on the
+#: default flight: 2 ms gave about half the gain of 20 ms, because the rare long waits (start-up,
+#: a burst of shell or MAVLink work) lift the running average over a small budget.
+PINNED_SPIN_US = 20000.0
 
 
 @dataclass(frozen=True)
@@ -70,7 +76,8 @@ class Orchestrator:
                  world: Any = None, quantum_ns: int = 1_000_000, mode: str = "process",
                  speed: float | None = None, trace_path: str | None = None,
                  start_method: str = "spawn", keep_running_on_death: bool = True,
-                 log: Callable[[str], None] | None = None, pipeline: bool = False) -> None:
+                 log: Callable[[str], None] | None = None, pipeline: bool = False,
+                 isolate: str | None = None) -> None:
         if quantum_ns <= 0 or type(quantum_ns) is not int:
             raise ValueError(f"quantum must be a positive integer ns, got {quantum_ns!r}")
         if mode not in ("process", "local"):
@@ -115,6 +122,11 @@ class Orchestrator:
         self._wall_elapsed = 0.0
         self._t_at_wall_start = 0
         self.on_quantum: list[Callable[[Orchestrator], None]] = []
+        #: process mode: the board given a CPU of its own (see :class:`CpuPlan`)
+        if isolate is not None and isolate not in self.specs:
+            raise ValueError(f"isolate: no board {isolate!r} (boards: {', '.join(self.specs)})")
+        self.isolate = isolate
+        self.cpu_plan: CpuPlan | None = None
         self._started = False
         self._check_wiring()
 
@@ -148,9 +160,14 @@ class Orchestrator:
             if self.mode == "process":
                 from hil.boardproc import ProcessHandle
 
+                if self.isolate is not None:
+                    self.cpu_plan = CpuPlan.make(self.isolate, log=self.log)
+                spin = self._spin_policy()
                 for name, spec in self.specs.items():
                     self.handles[name] = ProcessHandle(name, spec.factory, spec.kwargs,
-                                                       self.start_method)
+                                                       self.start_method, spin=spin)
+                if self.cpu_plan is not None:
+                    self.cpu_plan.apply(self.handles)
             else:
                 from hil.boardproc import resolve_kwargs
 
@@ -174,6 +191,20 @@ class Orchestrator:
             self.close()
             raise
         return self
+
+    def _spin_policy(self) -> Any:
+        """How the channels wait: :class:`hil.ipc.SpinPolicy`'s default, except that with the
+        FMU pinned and no pacing, waiters spin up to :data:`PINNED_SPIN_US` before blocking.
+        Then no waiter ever competes with the FMU for its core, and on the shared core a
+        spinner's ``sched_yield`` hands the CPU to the process it waits for, so a message
+        costs no semaphore wake-up (a futex system call, and waking the peer's virtual CPU:
+        30-40 us here) on either side. Paced runs keep the default: their waits are long,
+        and spinning through them would only burn CPU."""
+        if self.cpu_plan is None or self.speed is not None:
+            return None
+        from hil.ipc import SpinPolicy
+
+        return SpinPolicy(max_us=PINNED_SPIN_US)
 
     # -- running -------------------------------------------------------------------------------
 
@@ -365,7 +396,10 @@ class Orchestrator:
         if self.mode == "process":
             from hil.boardproc import ProcessHandle
 
-            inner: Any = ProcessHandle(name, spec.factory, spec.kwargs, self.start_method)
+            inner: Any = ProcessHandle(name, spec.factory, spec.kwargs, self.start_method,
+                                       spin=self._spin_policy())
+            if self.cpu_plan is not None:
+                self.cpu_plan.apply({name: inner})
         else:
             from hil.boardproc import resolve_kwargs
 
@@ -532,12 +566,81 @@ class Orchestrator:
         if self._trace is not None:
             self._trace.close()
             self._trace = None
+        if self.cpu_plan is not None:
+            self.cpu_plan.restore()
+            self.cpu_plan = None
 
     def __enter__(self) -> Orchestrator:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class CpuPlan:
+    """Which CPUs the orchestrator and its board processes may run on.
+
+    One board (the FMU, which computes about as much as everything else together) gets a CPU
+    of its own; the orchestrator and the other boards share the rest. Left to the scheduler on
+    two cores, the three processes migrate, spinning waiters of :mod:`hil.ipc` land on the
+    FMU's core, and the others block and pay semaphore wake-ups. With the FMU alone, a waiter's
+    ``sched_yield`` only ever hands its core to the process it waits for, and the orchestrator
+    lets waiters spin longer (:meth:`Orchestrator._spin_policy`): together worth ~1.3x on the
+    default flight (docs/architecture.md, Lockstep). Results do not depend on it (lockstep is
+    deterministic whatever runs where); only the wall clock does.
+
+    Nothing is pinned when the orchestrator may use fewer than two CPUs, or when the system
+    refuses (a container's CPU set, a platform without ``sched_setaffinity``): the run goes on
+    unpinned and says why through ``log``. :meth:`restore` gives the orchestrator its CPUs
+    back (it may be a test process that goes on with other work).
+    """
+
+    def __init__(self, isolate: str, board_cpus: set[int], shared_cpus: set[int],
+                 original: set[int], log: Callable[[str], None]) -> None:
+        self.isolate = isolate
+        self.board_cpus = board_cpus
+        self.shared_cpus = shared_cpus
+        self.original = original
+        self.log = log
+
+    @classmethod
+    def make(cls, isolate: str, log: Callable[[str], None] = lambda msg: None,
+             cpus: set[int] | None = None) -> CpuPlan | None:
+        """The plan for this process's CPUs (``cpus``: as if they were these), or None."""
+        try:
+            original = set(os.sched_getaffinity(0))
+        except (AttributeError, OSError) as exc:
+            log(f"hil: CPUs not pinned ({exc})")
+            return None
+        avail = sorted(cpus if cpus is not None else original)
+        if len(avail) < 2:
+            log("hil: CPUs not pinned (one CPU available)")
+            return None
+        return cls(isolate, {avail[-1]}, set(avail[:-1]), original, log)
+
+    def cpus_for(self, board: str) -> set[int]:
+        return self.board_cpus if board == self.isolate else self.shared_cpus
+
+    def apply(self, handles: dict[str, Any]) -> None:
+        """Pin these board processes and this process (the orchestrator) to their CPUs."""
+        try:
+            for name, handle in handles.items():
+                pid = getattr(handle, "pid", None)
+                if pid is not None:
+                    os.sched_setaffinity(pid, self.cpus_for(name))
+            os.sched_setaffinity(0, self.shared_cpus)
+        except OSError as exc:
+            self.log(f"hil: CPUs not pinned ({exc})")
+
+    def restore(self) -> None:
+        try:
+            os.sched_setaffinity(0, self.original)
+        except OSError:
+            pass
+
+    def describe(self) -> str:
+        return (f"{self.isolate} on CPU {','.join(map(str, sorted(self.board_cpus)))}, "
+                f"the rest on {','.join(map(str, sorted(self.shared_cpus)))}")
 
 
 class _WireFault:

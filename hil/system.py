@@ -53,6 +53,7 @@ class SystemConfig:
     gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
     pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
+    pin_cpus: bool = False            # the FMU on a CPU of its own (Orchestrator's CpuPlan)
     uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (node IDs) plugged into the FMU's CAN1
 
 
@@ -128,5 +129,6 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
             devices["udp"] = bridge_dev
             wiring += udp_wires(bridge_dev.port)
     orch = Orchestrator(boards, wiring, world=hub, quantum_ns=cfg.quantum_ns, mode=cfg.mode,
-                        speed=cfg.speed, trace_path=cfg.trace_path, pipeline=cfg.pipeline)
+                        speed=cfg.speed, trace_path=cfg.trace_path, pipeline=cfg.pipeline,
+                        isolate="fmu" if cfg.pin_cpus and cfg.mode == "process" else None)
     return orch, devices
