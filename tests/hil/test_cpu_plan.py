@@ -70,3 +70,20 @@ def test_paced_or_unpinned_runs_keep_the_default_spin_policy():
         with Orchestrator(_probes(), quantum_ns=MS, **kw) as orch:
             for handle in orch.handles.values():
                 assert handle._ch.spin.max_us == default
+
+
+def test_a_rebooted_board_gets_its_cpus_again():
+    with Orchestrator(_probes(), quantum_ns=MS, pipeline=True, isolate="fmu") as orch:
+        orch.run(duration_ns=2 * MS)
+        old_pid = orch.handles["fmu"].pid
+        orch._restart("fmu")  # what a "reboot" record from the board leads to
+        new_pid = orch.handles["fmu"].pid
+        assert new_pid != old_pid
+        plan = orch.cpu_plan
+        if plan is None:
+            assert len(os.sched_getaffinity(0)) < 2
+        else:
+            assert os.sched_getaffinity(new_pid) == plan.cpus_for("fmu")
+            assert orch.handles["fmu"]._ch.spin.max_us == PINNED_SPIN_US
+        orch.run(duration_ns=2 * MS)  # and it runs on
+        assert orch.reboots == {"fmu": 1}
