@@ -28,10 +28,14 @@ from board.endpoint import OP_ADVANCE, OP_CALL, OP_STOP, R_ERROR, R_OK, R_RESULT
 from board.endpoint import Endpoint, build_board
 from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied, SpinPolicy
 
-__all__ = ["ProcessHandle", "board_process_main", "resolve_kwargs"]
+__all__ = ["STATS_ENV", "ProcessHandle", "board_process_main", "resolve_kwargs"]
 
 _dumps = marshal.dumps
 _loads = marshal.loads
+
+#: Environment variable naming a folder: each board process then times every request it
+#: serves and writes the times there when it ends (see ``_serve_timed``).
+STATS_ENV = "HIL_BOARD_STATS"
 
 #: Ring size per direction; a quantum's traffic is far smaller, larger messages still stream.
 CHANNEL_CAPACITY = 1 << 18
@@ -76,6 +80,10 @@ def board_process_main(spec: ChannelSpec, name: str, factory: str,
                                      f"{traceback.format_exc()}")))
             return
         ch.send(endpoint.hello())
+        stats_dir = os.environ.get(STATS_ENV)
+        if stats_dir:
+            _serve_timed(ch, endpoint, os.path.join(stats_dir, f"{name}-{os.getpid()}.json"))
+            return
         while True:
             try:
                 request = ch.recv()
@@ -89,6 +97,38 @@ def board_process_main(spec: ChannelSpec, name: str, factory: str,
                 return  # the firmware raised: this chip is dead, its process ends
     finally:
         ch.close()
+
+
+def _serve_timed(ch: Any, endpoint: Endpoint, path: str) -> None:
+    """The serving loop, also timing each request on the host clock: how long the board
+    waited for it and how long it took to handle (``STATS_ENV``; for bench.board_busy, which
+    finds out whether a run is bound by a board or by the exchanges between them). Written
+    as JSON to ``path`` when the board process ends."""
+    import json
+    import time
+
+    clock = time.perf_counter
+    waits: list[float] = []
+    busy: list[float] = []
+    try:
+        while True:
+            t0 = clock()
+            try:
+                request = ch.recv()
+            except (ChannelClosed, PeerDied):
+                return
+            t1 = clock()
+            reply = endpoint.handle(request)
+            busy.append(clock() - t1)
+            waits.append(t1 - t0)
+            if reply is None:
+                return
+            ch.send(reply)
+            if not endpoint.alive:
+                return
+    finally:
+        with open(path, "w") as f:
+            json.dump({"wait_s": waits, "busy_s": busy}, f)
 
 
 class ProcessHandle:
