@@ -281,7 +281,7 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")
     print(f"  landed {summary['landed_distance_m']:.2f} m from home")
     tier = ("compiled tier" if summary["compiled"]
-            else "pure Python; `hil native build` compiles the boards, ~1.3-1.5x faster")
+            else "pure Python; `hil native build` compiles the boards, ~1.1-1.3x faster")
     cpus = summary.get("cpus") or "CPUs not pinned"
     print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time, "
           f"{tier}; {cpus})")
