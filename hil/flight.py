@@ -49,7 +49,7 @@ class FlightConfig:
     plot: bool = True
     keep_truth: bool = False            # return the recorded truth in the summary ("truth")
     pipeline: bool = True               # lookahead lockstep (see Orchestrator._step_pipelined)
-    pin_cpus: bool = True               # the FMU on a CPU of its own (Orchestrator's CpuPlan)
+    pin_cpus: bool = True               # the FMU on a CPU of its own (hil.cpu_plan)
 
 
 class _Recorder:

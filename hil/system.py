@@ -53,7 +53,7 @@ class SystemConfig:
     gcs: bool = False                 # a virtual-time GCS on the FMU's UDP port 18570
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
     pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
-    pin_cpus: bool = False            # the FMU on a CPU of its own (Orchestrator's CpuPlan)
+    pin_cpus: bool = False            # the FMU on a CPU of its own (hil.cpu_plan)
     uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (node IDs) plugged into the FMU's CAN1
 
 

@@ -1,4 +1,4 @@
-"""CPU placement (``Orchestrator(isolate=...)``, :class:`hil.orchestrator.CpuPlan`): one board
+"""CPU placement (``Orchestrator(isolate=...)``, :class:`hil.cpu_plan.CpuPlan`): one board
 gets a CPU of its own, the orchestrator and the other boards share the rest, waiters spin
 instead of blocking, and the orchestrator gets its CPUs back when it closes."""
 
@@ -7,8 +7,9 @@ import os
 import pytest
 
 from board.wiring import uart_link
+from hil.cpu_plan import CpuPlan
 from hil.ipc import SpinPolicy
-from hil.orchestrator import PINNED_SPIN_US, BoardSpec, CpuPlan, Orchestrator
+from hil.orchestrator import PINNED_SPIN_US, BoardSpec, Orchestrator
 
 MS = 1_000_000
 
