@@ -3,7 +3,7 @@ tool, not a figure).
 
 Runs the flight as ``hil run`` does (board processes, lookahead, the FMU pinned unless
 ``--no-pin``) with ``HIL_BOARD_STATS`` set, so that every board process times each request it
-serves on the host clock (``hil.boardproc._serve_timed``). A board that is busy most of the
+serves on the host clock (``hil.boardproc._serve``). A board that is busy most of the
 time is the bound, and only making it cheaper speeds the run up; a board that waits a lot
 while the others wait too points at the exchanges instead. The first ``--skip`` requests
 (boot, arming) are left out. ``python -m bench.board_busy [--no-pin] [--skip N]``.

@@ -34,7 +34,7 @@ _dumps = marshal.dumps
 _loads = marshal.loads
 
 #: Environment variable naming a folder: each board process then times every request it
-#: serves and writes the times there when it ends (see ``_serve_timed``).
+#: serves and writes the times there when it ends (see ``_serve``).
 STATS_ENV = "HIL_BOARD_STATS"
 
 #: Ring size per direction; a quantum's traffic is far smaller, larger messages still stream.
@@ -81,54 +81,49 @@ def board_process_main(spec: ChannelSpec, name: str, factory: str,
             return
         ch.send(endpoint.hello())
         stats_dir = os.environ.get(STATS_ENV)
-        if stats_dir:
-            _serve_timed(ch, endpoint, os.path.join(stats_dir, f"{name}-{os.getpid()}.json"))
-            return
-        while True:
-            try:
-                request = ch.recv()
-            except (ChannelClosed, PeerDied):
-                return
-            reply = endpoint.handle(request)
-            if reply is None:
-                return
-            ch.send(reply)
-            if not endpoint.alive:
-                return  # the firmware raised: this chip is dead, its process ends
+        _serve(ch, endpoint, os.path.join(stats_dir, f"{name}-{os.getpid()}.json")
+               if stats_dir else None)
     finally:
         ch.close()
 
 
-def _serve_timed(ch: Any, endpoint: Endpoint, path: str) -> None:
-    """The serving loop, also timing each request on the host clock: how long the board
-    waited for it and how long it took to handle (``STATS_ENV``; for bench.board_busy, which
-    finds out whether a run is bound by a board or by the exchanges between them). Written
-    as JSON to ``path`` when the board process ends."""
-    import json
-    import time
+def _serve(ch: Any, endpoint: Endpoint, stats_path: str | None) -> None:
+    """Answer requests until told to stop, the orchestrator goes, or the firmware raises (this
+    chip is then dead, and its process ends). With ``stats_path`` (``STATS_ENV``, for
+    bench.board_busy), also time each request on the host clock, how long the board waited
+    for it and how long it took to handle, and write the times there as JSON at the end."""
+    clock = None
+    if stats_path is not None:
+        import time
 
-    clock = time.perf_counter
+        clock = time.perf_counter
     waits: list[float] = []
     busy: list[float] = []
     try:
         while True:
-            t0 = clock()
+            t0 = clock() if clock else 0.0
             try:
                 request = ch.recv()
             except (ChannelClosed, PeerDied):
                 return
-            t1 = clock()
-            reply = endpoint.handle(request)
-            busy.append(clock() - t1)
-            waits.append(t1 - t0)
+            if clock:
+                t1 = clock()
+                reply = endpoint.handle(request)
+                busy.append(clock() - t1)
+                waits.append(t1 - t0)
+            else:
+                reply = endpoint.handle(request)
             if reply is None:
                 return
             ch.send(reply)
             if not endpoint.alive:
                 return
     finally:
-        with open(path, "w") as f:
-            json.dump({"wait_s": waits, "busy_s": busy}, f)
+        if stats_path is not None:
+            import json
+
+            with open(stats_path, "w") as f:
+                json.dump({"wait_s": waits, "busy_s": busy}, f)
 
 
 class ProcessHandle:
