@@ -29,6 +29,7 @@ def summarize(stats_dir: str, skip: int) -> list[dict]:
     for path in sorted(Path(stats_dir).glob("*.json")):
         data = json.loads(path.read_text())
         busy, wait = data["busy_s"][skip:], data["wait_s"][skip:]
+        cpu = data.get("busy_cpu_s", [])[skip:]
         if not busy:
             continue
         s = sorted(busy)
@@ -38,6 +39,7 @@ def summarize(stats_dir: str, skip: int) -> list[dict]:
                      "busy_p50_us": 1e6 * _pct(s, 0.5), "busy_p90_us": 1e6 * _pct(s, 0.9),
                      "busy_p99_us": 1e6 * _pct(s, 0.99),
                      "wait_mean_us": 1e6 * sum(wait) / len(wait),
+                     "busy_cpu_mean_us": 1e6 * sum(cpu) / len(cpu) if cpu else 0.0,
                      "busy_share": sum(busy) / total if total else 0.0})
     return rows
 
@@ -46,6 +48,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--no-pin", action="store_true", help="leave CPU placement to the OS")
     ap.add_argument("--skip", type=int, default=20000, help="requests to leave out (start-up)")
+    ap.add_argument("--quantum-us", type=int, default=0, help="lockstep quantum (default: hil run's)")
     args = ap.parse_args()
     from hil import native
 
@@ -57,16 +60,18 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as stats:
         os.environ[STATS_ENV] = stats  # the board processes inherit it
+        cfg = FlightConfig(out_dir=out, progress=False, plot=False, pin_cpus=not args.no_pin)
+        if args.quantum_us:
+            cfg.quantum_ns = args.quantum_us * 1000
         try:
-            summary = fly(FlightConfig(out_dir=out, progress=False, plot=False,
-                                       pin_cpus=not args.no_pin))
+            summary = fly(cfg)
         finally:
             del os.environ[STATS_ENV]
         rows = summarize(stats, args.skip)
     for r in rows:
         print(f"{r['board']:4s} {r['requests']:7d} requests  busy mean {r['busy_mean_us']:6.1f} us "
               f"(p50 {r['busy_p50_us']:.0f}, p90 {r['busy_p90_us']:.0f}, p99 "
-              f"{r['busy_p99_us']:.0f})  wait mean {r['wait_mean_us']:6.1f} us  "
+              f"{r['busy_p99_us']:.0f}; CPU {r['busy_cpu_mean_us']:.1f})  wait mean {r['wait_mean_us']:6.1f} us  "
               f"busy {100 * r['busy_share']:.0f} %")
     print(f"rtf {summary['rtf']}; {'compiled tier' if summary['compiled'] else 'pure Python'}; "
           f"{summary.get('cpus') or 'CPUs not pinned'}")

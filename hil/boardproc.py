@@ -92,13 +92,15 @@ def _serve(ch: Any, endpoint: Endpoint, stats_path: str | None) -> None:
     chip is then dead, and its process ends). With ``stats_path`` (``STATS_ENV``, for
     bench.board_busy), also time each request on the host clock, how long the board waited
     for it and how long it took to handle, and write the times there as JSON at the end."""
-    clock = None
+    clock = cpu_clock = None
     if stats_path is not None:
         import time
 
         clock = time.perf_counter
+        cpu_clock = time.thread_time  # host CPU time: what the wall time was, minus steal
     waits: list[float] = []
     busy: list[float] = []
+    busy_cpu: list[float] = []
     try:
         while True:
             t0 = clock() if clock else 0.0
@@ -106,9 +108,11 @@ def _serve(ch: Any, endpoint: Endpoint, stats_path: str | None) -> None:
                 request = ch.recv()
             except (ChannelClosed, PeerDied):
                 return
-            if clock:
+            if clock and cpu_clock:
                 t1 = clock()
+                c1 = cpu_clock()
                 reply = endpoint.handle(request)
+                busy_cpu.append(cpu_clock() - c1)
                 busy.append(clock() - t1)
                 waits.append(t1 - t0)
             else:
@@ -123,7 +127,7 @@ def _serve(ch: Any, endpoint: Endpoint, stats_path: str | None) -> None:
             import json
 
             with open(stats_path, "w") as f:
-                json.dump({"wait_s": waits, "busy_s": busy}, f)
+                json.dump({"wait_s": waits, "busy_s": busy, "busy_cpu_s": busy_cpu}, f)
 
 
 class ProcessHandle:

@@ -50,6 +50,7 @@ class FlightConfig:
     keep_truth: bool = False            # return the recorded truth in the summary ("truth")
     pipeline: bool = True               # lookahead lockstep (see Orchestrator._step_pipelined)
     pin_cpus: bool = True               # the FMU on a CPU of its own (hil.cpu_plan)
+    trace_path: str | None = None       # write a lockstep trace (hil.trace) of every board
 
 
 class _Recorder:
@@ -93,7 +94,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
     scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
                         params=params, gcs=True, pipeline=cfg.pipeline,
-                        pin_cpus=cfg.pin_cpus)
+                        pin_cpus=cfg.pin_cpus, trace_path=cfg.trace_path)
     orch, dev = build_system(scfg)
     gcs: GcsClient = dev["gcs"]
     world = dev["world"].world

@@ -52,18 +52,25 @@ class TraceWriter:
     """Records every inter-process message (stamped records per board per quantum).
 
     The file is a sequence of marshalled tuples: a header
-    ``("fmu-hil-trace", 1, quantum_ns, {board: (factory, kwargs)})`` and then one
-    ``(board, until_ns, inputs, outputs)`` per board per quantum. ``hil.trace.replay_board``
-    rebuilds a board and feeds it the recorded inputs to reproduce its outputs.
+    ``("fmu-hil-trace", 2, quantum_ns, {board: (factory, kwargs)})``, then one
+    ``(board, until_ns, inputs, outputs)`` per board per quantum and one
+    ``(board, None, method, args)`` per control call (shell commands, parameters, faults), in
+    the order the board saw them. ``hil.trace.replay_board`` rebuilds a board and feeds it the
+    recorded inputs and calls to reproduce its outputs.
     """
+
+    VERSION = 2
 
     def __init__(self, path: str, quantum_ns: int, boards: dict[str, BoardSpec]) -> None:
         self._f = open(path, "wb")  # noqa: SIM115 - closed by close()
         header = {name: (s.factory, s.kwargs) for name, s in boards.items()}
-        marshal.dump(("fmu-hil-trace", 1, quantum_ns, header), self._f)
+        marshal.dump(("fmu-hil-trace", self.VERSION, quantum_ns, header), self._f)
 
     def write(self, board: str, until_ns: int, inputs: list, outputs: list) -> None:
         marshal.dump((board, until_ns, inputs, outputs), self._f)
+
+    def call(self, board: str, method: str, args: tuple) -> None:
+        marshal.dump((board, None, method, args), self._f)
 
     def close(self) -> None:
         self._f.close()
@@ -541,7 +548,11 @@ class Orchestrator:
                 raise BoardDied(board, self.dead[board])
         elif self._started and self.t_ns > 0:
             handle.post_advance(self.t_ns, self.t_ns, [])
-            _, self._next_ns[board] = handle.wait_advance()
+            outputs, self._next_ns[board] = handle.wait_advance()
+            if self._trace is not None:
+                self._trace.write(board, self.t_ns, [], outputs)
+        if self._trace is not None:
+            self._trace.call(board, method, args)
         result = handle.call(method, *args)
         self._next_ns[board] = 0  # a control call may have scheduled something
         return result

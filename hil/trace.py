@@ -30,8 +30,9 @@ class Mismatch:
     replayed: list
 
 
-def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, int, list, list]]]:
-    """Return (header, iterator of (board, until_ns, inputs, outputs))."""
+def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, Any, Any, Any]]]:
+    """Return (header, iterator of records): ``(board, until_ns, inputs, outputs)`` per quantum
+    and, from version 2, ``(board, None, method, args)`` per control call."""
     f = open(path, "rb")  # noqa: SIM115 - closed by the generator
     try:
         header = marshal.load(f)
@@ -41,12 +42,12 @@ def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, int, list
     if not (isinstance(header, tuple) and len(header) == 4 and header[0] == "fmu-hil-trace"):
         f.close()
         raise TraceError(f"{path}: not an fmu-hil trace (bad header)")
-    if header[1] != 1:
+    if header[1] not in (1, 2):
         f.close()
         raise TraceError(f"{path}: trace version {header[1]} is not supported")
     info = {"quantum_ns": header[2], "boards": header[3]}
 
-    def records() -> Iterator[tuple[str, int, list, list]]:
+    def records() -> Iterator[tuple[str, Any, Any, Any]]:
         with f:
             while True:
                 try:
@@ -60,12 +61,19 @@ def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, int, list
     return info, records()
 
 
-def replay_board(path: str, board: str, max_mismatches: int = 10) -> tuple[int, list[Mismatch]]:
-    """Replay one board of a trace; returns (quanta replayed, mismatches found)."""
+def replay_board(path: str, board: str, max_mismatches: int = 10,
+                 kwargs: dict[str, Any] | None = None) -> tuple[int, list[Mismatch]]:
+    """Replay one board of a trace (its quanta and control calls, in order); returns (quanta
+    replayed, mismatches found).
+
+    A board's persistent storage (its FRAM image, its SD card) is not in the trace: the board
+    is built with the recorded factory arguments, updated with ``kwargs``, and the files they
+    name must be as they were when the recording started (a fresh FRAM for a first boot).
+    """
     info, records = read_trace(path)
     if board not in info["boards"]:
         raise TraceError(f"{path}: no board {board!r} (boards: {', '.join(info['boards'])})")
-    factory, kwargs = info["boards"][board]
+    factory, kwargs = info["boards"][board][0], {**info["boards"][board][1], **(kwargs or {})}
     quantum = info["quantum_ns"]
     handle = LocalHandle(board, factory, kwargs)
     quanta = 0
@@ -73,6 +81,12 @@ def replay_board(path: str, board: str, max_mismatches: int = 10) -> tuple[int, 
     try:
         for name, until_ns, inputs, outputs in records:
             if name != board:
+                continue
+            if until_ns is None:  # a control call (shell command, parameter, fault)
+                try:
+                    handle.call(inputs, *outputs)
+                except RuntimeError:
+                    pass  # it failed when recorded too (the board answered an error)
                 continue
             handle.post_advance(until_ns - quantum, until_ns, inputs)
             got, _ = handle.wait_advance()
