@@ -115,6 +115,9 @@ class Uart:
         self.framing_errors = 0
         self.parity_errors = 0
         self.breaks = 0
+        #: A line fault on the RX pin (``board.uart_fault.LineNoise``): it sees each burst
+        #: first and hands the surviving bytes to :meth:`receive_clean`.
+        self.line_noise: Any = None
 
     # -- configuration --------------------------------------------------------------------------
 
@@ -242,6 +245,16 @@ class Uart:
 
     def receive(self, t_start_ns: int, tx_config: UartConfig,
                 data: bytes | LineBreak) -> None:
+        """A burst reaches the RX pin: through the line fault if one is installed, else
+        straight to :meth:`receive_clean`."""
+        noise = self.line_noise
+        if noise is not None:
+            noise.on_burst(t_start_ns, tx_config, data)
+            return
+        self.receive_clean(t_start_ns, tx_config, data)
+
+    def receive_clean(self, t_start_ns: int, tx_config: UartConfig,
+                      data: bytes | LineBreak) -> None:
         """A burst reaches the RX pin: ``data`` sent back to back from ``t_start_ns`` (leading
         edge of the first start bit) in the transmitter's format ``tx_config``.
 

@@ -47,31 +47,20 @@ EXCLUDED: frozenset[str] = frozenset({
     "board/specs.py", "firmware/drivers/gps/ubx.py", "firmware/modules/dataman/store.py",
     "ioproc/firmware/bits.py", "ioproc/mixer/parser.py", "firmware/modules/logger/module.py",
     "firmware/modules/logger/logger.py", "firmware/drivers/gps/gps.py",
-    "firmware/modules/mc_rate_control/mc_rate_control.py",
-    "firmware/modules/mc_att_control/mc_att_control.py",
     "firmware/modules/mc_pos_control/mc_pos_control.py",
     "firmware/modules/land_detector/land_detector.py", "firmware/modules/battery/battery.py",
     "firmware/modules/commander/commander.py", "firmware/modules/navigator/modes.py",
-    "firmware/modules/mavlink/commands.py", "firmware/modules/mavlink/instance.py",
-    "firmware/modules/mavlink/module.py", "firmware/drivers/modules.py",
+    "firmware/modules/mavlink/commands.py", "firmware/modules/mavlink/module.py",
+    "firmware/drivers/modules.py",
     "peripherals/ublox/solution.py", "firmware/drivers/uavcan/node.py", "board/can.py",
-    "board/fmu_v2.py", "ioproc/pages.py", "ioproc/board.py", "firmware/modules/ekf2/core.py",
-    "firmware/modules/ekf2/module.py",
+    "board/fmu_v2.py", "ioproc/pages.py", "ioproc/board.py",
     "ioproc/rc/sumd.py", "ioproc/rc/st24.py",  # a mypyc internal error (bytearray loops)
-    # the build failed on these (perf, system, ms5611) or they need what compiled classes lack:
-    # a weak reference (fm25v01's finalizer), a second compiled base (commander's mixin)
-    "firmware/platform/perf.py", "firmware/system.py", "peripherals/fm25v01.py",
-    "peripherals/ms5611.py", "firmware/modules/commander/commands.py",
+    # the build failed on system.py, or they need what compiled classes lack: a weak reference
+    # (fm25v01's finalizer), a second compiled base (commander's mixin)
+    "firmware/system.py", "peripherals/fm25v01.py", "firmware/modules/commander/commands.py",
     # parameter values are ``int | float``, which mypyc would store as floats
     "firmware/platform/params.py", "firmware/platform/bson.py", "firmware/shell/cmd_param.py",
     "firmware/modules/mavlink/params.py", "firmware/drivers/px4io/params.py", "board/adc.py",
-    # functools.cached_property is a plain property on a compiled class (no instance dict)
-    "ioproc/protocol.py",
-    # left out with protocol.py for its caching decorators (lru_cache on module functions,
-    # which mypyc may well handle): not tried compiled yet
-    "board/uart_line.py",
-    # bus.uart_noise swaps a Uart's receive through the instance dict (board/uart_fault.py)
-    "board/uart.py",
     # the DSM decoder loses frame sync compiled (rc_dsm_out_of_range, rc_frame_loss_burst
     # never see RC); not understood yet, so it stays Python
     "ioproc/rc/dsm.py",

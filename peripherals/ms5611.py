@@ -169,7 +169,7 @@ class Ms5611(SpiTarget):
     * ``bias_step[0]``: added to the pressure in Pa (``bias_step[1]`` to the temperature, degC).
     """
 
-    max_clock_hz = 20_000_000
+    max_clock_hz: int | None = 20_000_000
 
     def __init__(self, kernel: Kernel, env: Environment, rng: np.random.Generator,
                  name: str = "ms5611", prom: tuple[int, ...] | list[int] | None = None) -> None:

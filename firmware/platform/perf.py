@@ -54,16 +54,16 @@ class PerfCounter:
         self._n = 0
         self.min_us = math.inf
         self.max_us = 0.0
-        self._sum: float = 0
-        self._sumsq: float = 0
+        self._sum = 0  # integer microseconds: exact however long the run
+        self._sumsq = 0
         self.total_us = 0
 
-    def _sample(self, value_us: float) -> None:
+    def _sample(self, value_us: int) -> None:
         self._n += 1
         if value_us < self.min_us:
-            self.min_us = value_us
+            self.min_us = float(value_us)
         if value_us > self.max_us:
-            self.max_us = value_us
+            self.max_us = float(value_us)
         self._sum += value_us
         self._sumsq += value_us * value_us
 
@@ -80,9 +80,9 @@ class PerfCounter:
             v = now - self._last_us  # _sample() inlined: this runs on every driver cycle
             self._n += 1
             if v < self.min_us:
-                self.min_us = v
+                self.min_us = float(v)
             if v > self.max_us:
-                self.max_us = v
+                self.max_us = float(v)
             self._sum += v
             self._sumsq += v * v
             self.total_us = now - self._first_us
@@ -103,9 +103,9 @@ class PerfCounter:
         self.total_us += v
         self._n += 1  # _sample() inlined
         if v < self.min_us:
-            self.min_us = v
+            self.min_us = float(v)
         if v > self.max_us:
-            self.max_us = v
+            self.max_us = float(v)
         self._sum += v
         self._sumsq += v * v
 

@@ -83,6 +83,7 @@ class Ekf:
     """State, covariance, prediction and scalar fusion; no uORB, no parameters by name."""
 
     def __init__(self, noise: NoiseParams | None = None) -> None:
+        self._q_dt: float = -1.0
         self.set_noise(noise or NoiseParams())
         self.q: Quat = (1.0, 0.0, 0.0, 0.0)
         self.R = dcm(self.q)

@@ -162,6 +162,7 @@ class Ekf2Module(WorkItemModule):
 
     def run(self) -> None:
         item = self.work_item
+        assert item is not None
         item.cpu_cost_ns = self.CPU_COST_NS
         if self._param_sub.updated():
             self._param_sub.copy()

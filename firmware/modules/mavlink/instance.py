@@ -74,7 +74,7 @@ class MavlinkInstance(WorkItem):
         self.mav = mav.MAVLink(None, self.sysid, self.compid)
         self.mav.robust_parsing = True
         self._out = bytearray()
-        self._udp = transport if getattr(transport, "kind", "") == "udp" else None
+        self._udp: Any = transport if getattr(transport, "kind", "") == "udp" else None
         #: earliest next_us of any stream: runs before it skip the stream loop
         self._streams_due_us = 0
         self._silent = False
@@ -138,7 +138,10 @@ class MavlinkInstance(WorkItem):
 
     def param(self, name: str, default: float = 0) -> int | float:
         p = self.system.params
-        return p.get(name, default) if p is not None else default
+        if p is None:
+            return default
+        v = p.get(name, default)
+        return default if v is None else v
 
     def time_us(self) -> int:
         return self.platform.hrt.absolute_time()

@@ -138,7 +138,9 @@ class McAttControlModule(WorkItemModule):
         self.rates_msg = orb.new("vehicle_rates_setpoint")
         self.pub_att_sp = self.advertise("vehicle_attitude_setpoint")
         self.att_sp_msg = orb.new("vehicle_attitude_setpoint")
-        self.sub_att = self.subscribe_callback(self.work_item, "vehicle_attitude",
+        item = self.work_item
+        assert item is not None  # started: the module's work item exists
+        self.sub_att = self.subscribe_callback(item, "vehicle_attitude",
                                                interval_us=self.INTERVAL_LIMIT_US)
         self.sub_att_sp = self.subscribe("vehicle_attitude_setpoint")
         self.sub_mode = self.subscribe("vehicle_control_mode")
@@ -148,8 +150,9 @@ class McAttControlModule(WorkItemModule):
         self.sub_hover = self.subscribe("hover_thrust_estimate")
         self.sub_param = self.subscribe("parameter_update")
         self.manual = orb.new("manual_control_setpoint")
-        self.hover_thrust = float(self.system.params.get("MPC_THR_HOVER", 0.5)
-                                  if self.system.params is not None else 0.5)
+        params = self.system.params
+        hover = params.get("MPC_THR_HOVER", 0.5) if params is not None else 0.5
+        self.hover_thrust = float(hover if hover is not None else 0.5)
         self._load_params()
 
     def _load_params(self) -> None:
@@ -164,7 +167,8 @@ class McAttControlModule(WorkItemModule):
         self.manthr_min = float(p("MPC_MANTHR_MIN"))
         self.thr_curve = int(p("MPC_THR_CURVE"))
         params = self.system.params
-        self.thr_max = float(params.get("MPC_THR_MAX", 1.0)) if params is not None else 1.0
+        thr_max = params.get("MPC_THR_MAX", 1.0) if params is not None else 1.0
+        self.thr_max = float(thr_max if thr_max is not None else 1.0)
         if params is not None and "MPC_THR_HOVER" in params and not self.sub_hover.advertised:
             self.hover_thrust = float(params["MPC_THR_HOVER"])
 

@@ -109,7 +109,9 @@ class McRateControlModule(WorkItemModule):
         orb = self.platform.orb
         self.pub = self.advertise("actuator_controls_0")
         self.msg = orb.new("actuator_controls_0")
-        self.sub_gyro = self.subscribe_callback(self.work_item, "vehicle_angular_velocity")
+        item = self.work_item
+        assert item is not None  # started: the module's work item exists
+        self.sub_gyro = self.subscribe_callback(item, "vehicle_angular_velocity")
         self.sub_sp = self.subscribe("vehicle_rates_setpoint")
         self.sub_armed = self.subscribe("actuator_armed")
         self.sub_land = self.subscribe("vehicle_land_detected")
