@@ -61,6 +61,9 @@ TRUTH_KEYS = ("t_ns", "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag
               "pressure_pa", "temperature_c", "lat_deg", "lon_deg", "alt_m", "agl_m",
               "pos_ned_m", "vel_ned_m_s", "airspeed_m_s", "diff_pressure_pa", "battery_v",
               "battery_a")
+(_ACCEL, _GYRO, _MAG, _PRESSURE, _TEMPERATURE, _LAT, _LON, _ALT, _VEL) = (
+    TRUTH_KEYS.index(k) for k in ("accel_body_m_s2", "gyro_rad_s", "mag_body_gauss", "pressure_pa",
+                                  "temperature_c", "lat_deg", "lon_deg", "alt_m", "vel_ned_m_s"))
 
 # SPI clocks PX4 uses per device for register access (data reads switch faster themselves).
 _SPI_CLOCK = {"mpu6000": 1_000_000, "l3gd20": 11_000_000, "lsm303d": 11_000_000,
@@ -218,8 +221,9 @@ class FmuV2Board(Board):
         if handler is not None:
             handler(t_ns, remote_port, data)
 
-    def _on_truth(self, t_ns: int, record: Any) -> None:
-        self.env.update_from_truth(t_ns, dict(zip(TRUTH_KEYS, record)))
+    def _on_truth(self, t_ns: int, r: Any) -> None:
+        self.env.set_truth(t_ns, r[_ACCEL], r[_GYRO], r[_MAG], r[_PRESSURE], r[_TEMPERATURE],
+                           r[_LAT], r[_LON], r[_ALT], r[_VEL])
 
     def _on_power(self, t_ns: int, record: Any) -> None:
         self._power_v, self._power_a = record

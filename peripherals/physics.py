@@ -38,13 +38,21 @@ class Environment:
 
     def update_from_truth(self, t_ns: int, truth: dict) -> None:
         """Copy the fields of a world truth record (a mapping of field name to value)."""
+        self.set_truth(t_ns, truth["accel_body_m_s2"], truth["gyro_rad_s"],
+                       truth["mag_body_gauss"], truth["pressure_pa"], truth["temperature_c"],
+                       truth["lat_deg"], truth["lon_deg"], truth["alt_m"], truth["vel_ned_m_s"])
+
+    def set_truth(self, t_ns: int, accel_m_s2: Vec3, gyro_rad_s: Vec3, mag_gauss: Vec3,
+                  pressure_pa: float, temperature_c: float, lat_deg: float, lon_deg: float,
+                  alt_m: float, vel_ned_m_s: Vec3) -> None:
+        """The same from the values themselves (the board's 1 kHz path: no mapping built)."""
         self.t_ns = t_ns
-        self.accel_m_s2 = truth["accel_body_m_s2"]
-        self.gyro_rad_s = truth["gyro_rad_s"]
-        self.mag_gauss = truth["mag_body_gauss"]
-        self.pressure_pa = truth["pressure_pa"]
-        self.temperature_c = truth["temperature_c"]
-        self.lat_deg = truth["lat_deg"]
-        self.lon_deg = truth["lon_deg"]
-        self.alt_m = truth["alt_m"]
-        self.vel_ned_m_s = truth["vel_ned_m_s"]
+        self.accel_m_s2 = accel_m_s2
+        self.gyro_rad_s = gyro_rad_s
+        self.mag_gauss = mag_gauss
+        self.pressure_pa = pressure_pa
+        self.temperature_c = temperature_c
+        self.lat_deg = lat_deg
+        self.lon_deg = lon_deg
+        self.alt_m = alt_m
+        self.vel_ned_m_s = vel_ned_m_s
