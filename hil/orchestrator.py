@@ -21,7 +21,6 @@ Results never depend on pacing: pacing only sleeps between quanta (wall clock, a
 
 from __future__ import annotations
 
-import marshal
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
@@ -29,6 +28,7 @@ from typing import Any, Callable, Iterable
 from board.endpoint import BoardDied, LocalHandle
 from board.wiring import WORLD, Wire
 from hil.cpu_plan import CpuPlan
+from hil.trace import TraceWriter
 
 __all__ = ["BoardSpec", "Orchestrator", "BoardDied", "TraceWriter"]
 
@@ -46,34 +46,6 @@ class BoardSpec:
 
     factory: str
     kwargs: dict[str, Any] = field(default_factory=dict)
-
-
-class TraceWriter:
-    """Records every inter-process message (stamped records per board per quantum).
-
-    The file is a sequence of marshalled tuples: a header
-    ``("fmu-hil-trace", 2, quantum_ns, {board: (factory, kwargs)})``, then one
-    ``(board, until_ns, inputs, outputs)`` per board per quantum and one
-    ``(board, None, method, args)`` per control call (shell commands, parameters, faults), in
-    the order the board saw them. ``hil.trace.replay_board`` rebuilds a board and feeds it the
-    recorded inputs and calls to reproduce its outputs.
-    """
-
-    VERSION = 2
-
-    def __init__(self, path: str, quantum_ns: int, boards: dict[str, BoardSpec]) -> None:
-        self._f = open(path, "wb")  # noqa: SIM115 - closed by close()
-        header = {name: (s.factory, s.kwargs) for name, s in boards.items()}
-        marshal.dump(("fmu-hil-trace", self.VERSION, quantum_ns, header), self._f)
-
-    def write(self, board: str, until_ns: int, inputs: list, outputs: list) -> None:
-        marshal.dump((board, until_ns, inputs, outputs), self._f)
-
-    def call(self, board: str, method: str, args: tuple) -> None:
-        marshal.dump((board, None, method, args), self._f)
-
-    def close(self) -> None:
-        self._f.close()
 
 
 class Orchestrator:

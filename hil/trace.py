@@ -1,6 +1,7 @@
-"""Reading and replaying lockstep traces (written by :class:`hil.orchestrator.TraceWriter`).
+"""Lockstep traces: writing (:class:`TraceWriter`, for the orchestrator), reading and replaying.
 
-A trace holds, per board and quantum, the records that went in and came out. Replaying a board
+A trace holds, per board and quantum, the records that went in and came out, and the control
+calls each board received. Replaying a board
 rebuilds it from the factory in the header and feeds it the recorded inputs, quantum by quantum;
 since a board is deterministic, it must produce the recorded outputs again. That makes a trace
 both a debugging aid (run one board alone under a debugger with the exact inputs of a failing
@@ -15,7 +16,7 @@ from typing import Any, Iterator
 
 from board.endpoint import LocalHandle
 
-__all__ = ["read_trace", "replay_board", "Mismatch", "TraceError"]
+__all__ = ["TraceWriter", "read_trace", "replay_board", "Mismatch", "TraceError"]
 
 
 class TraceError(ValueError):
@@ -30,6 +31,35 @@ class Mismatch:
     replayed: list
 
 
+class TraceWriter:
+    """Records every inter-process message (stamped records per board per quantum).
+
+    The file is a sequence of marshalled tuples: a header
+    ``("fmu-hil-trace", 2, quantum_ns, {board: (factory, kwargs)})``, then one
+    ``(board, until_ns, inputs, outputs)`` per board per quantum and one
+    ``(board, None, method, args)`` per control call (shell commands, parameters, faults), in
+    the order the board saw them. ``hil.trace.replay_board`` rebuilds a board and feeds it the
+    recorded inputs and calls to reproduce its outputs.
+    """
+
+    VERSION = 2
+
+    def __init__(self, path: str, quantum_ns: int, boards: dict[str, Any]) -> None:
+        """``boards``: name -> spec with ``factory`` and ``kwargs`` (hil.orchestrator.BoardSpec)."""
+        self._f = open(path, "wb")  # noqa: SIM115 - closed by close()
+        header = {name: (s.factory, s.kwargs) for name, s in boards.items()}
+        marshal.dump(("fmu-hil-trace", self.VERSION, quantum_ns, header), self._f)
+
+    def write(self, board: str, until_ns: int, inputs: list, outputs: list) -> None:
+        marshal.dump((board, until_ns, inputs, outputs), self._f)
+
+    def call(self, board: str, method: str, args: tuple) -> None:
+        marshal.dump((board, None, method, args), self._f)
+
+    def close(self) -> None:
+        self._f.close()
+
+
 def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, Any, Any, Any]]]:
     """Return (header, iterator of records): ``(board, until_ns, inputs, outputs)`` per quantum
     and, from version 2, ``(board, None, method, args)`` per control call."""
@@ -42,7 +72,7 @@ def read_trace(path: str) -> tuple[dict[str, Any], Iterator[tuple[str, Any, Any,
     if not (isinstance(header, tuple) and len(header) == 4 and header[0] == "fmu-hil-trace"):
         f.close()
         raise TraceError(f"{path}: not an fmu-hil trace (bad header)")
-    if header[1] not in (1, 2):
+    if header[1] not in (1, TraceWriter.VERSION):
         f.close()
         raise TraceError(f"{path}: trace version {header[1]} is not supported")
     info = {"quantum_ns": header[2], "boards": header[3]}
