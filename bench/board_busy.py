@@ -6,7 +6,9 @@ Runs the flight as ``hil run`` does (board processes, lookahead, the FMU pinned 
 serves on the host clock (``hil.boardproc._serve``). A board that is busy most of the
 time is the bound, and only making it cheaper speeds the run up; a board that waits a lot
 while the others wait too points at the exchanges instead. The first ``--skip`` requests
-(boot, arming) are left out. ``python -m bench.board_busy [--no-pin] [--skip N]``.
+(boot, arming) are left out; ``--quantum-us`` sets the lockstep quantum. Beside each board's
+wall time it prints its thread CPU time (the same unless the host steals the CPU).
+``python -m bench.board_busy [--no-pin] [--skip N] [--quantum-us Q]``.
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--no-pin", action="store_true", help="leave CPU placement to the OS")
     ap.add_argument("--skip", type=int, default=20000, help="requests to leave out (start-up)")
-    ap.add_argument("--quantum-us", type=int, default=0, help="lockstep quantum (default: hil run's)")
+    ap.add_argument("--quantum-us", type=int, default=0,
+                    help="lockstep quantum (default: hil run's)")
     args = ap.parse_args()
     from hil import native
 
@@ -71,8 +74,8 @@ def main() -> None:
     for r in rows:
         print(f"{r['board']:4s} {r['requests']:7d} requests  busy mean {r['busy_mean_us']:6.1f} us "
               f"(p50 {r['busy_p50_us']:.0f}, p90 {r['busy_p90_us']:.0f}, p99 "
-              f"{r['busy_p99_us']:.0f}; CPU {r['busy_cpu_mean_us']:.1f})  wait mean {r['wait_mean_us']:6.1f} us  "
-              f"busy {100 * r['busy_share']:.0f} %")
+              f"{r['busy_p99_us']:.0f}; CPU {r['busy_cpu_mean_us']:.1f})  "
+              f"wait mean {r['wait_mean_us']:6.1f} us  busy {100 * r['busy_share']:.0f} %")
     print(f"rtf {summary['rtf']}; {'compiled tier' if summary['compiled'] else 'pure Python'}; "
           f"{summary.get('cpus') or 'CPUs not pinned'}")
 

@@ -28,15 +28,14 @@ def record(path: str) -> None:
                          pin_cpus=False, trace_path=path))
 
 
-def replay(path: str, board: str) -> tuple[float, int, int]:
+def replay(path: str, board: str, recorded_kwargs: dict) -> tuple[float, int, int]:
     """(CPU seconds, quanta, mismatches) of one replay, on fresh storage (a first boot, as
     recorded): every ``*_path``/``*_root`` argument of the board points into a new folder."""
-    from hil.trace import read_trace, replay_board
+    from hil.trace import replay_board
 
-    info, _ = read_trace(path)
     with tempfile.TemporaryDirectory() as fresh:
         kwargs = {k: os.path.join(fresh, os.path.basename(v))
-                  for k, v in info["boards"][board][1].items()
+                  for k, v in recorded_kwargs.items()
                   if (k.endswith("_path") or k.endswith("_root")) and isinstance(v, str)}
         c0 = time.process_time()
         quanta, mismatches = replay_board(path, board, kwargs=kwargs)
@@ -66,7 +65,7 @@ def main() -> None:
 
     info, _ = read_trace(args.trace)
     for _ in range(args.repeat):
-        cpu, quanta, bad = replay(args.trace, args.board)
+        cpu, quanta, bad = replay(args.trace, args.board, info["boards"][args.board][1])
         virtual = quanta * info["quantum_ns"] * 1e-9
         print(f"{args.board}: {1000 * cpu / virtual:6.1f} ms CPU per virtual s "
               f"({cpu:.2f} s for {virtual:.1f} virtual s, {quanta} quanta, {tier}); "

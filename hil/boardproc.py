@@ -92,23 +92,22 @@ def _serve(ch: Any, endpoint: Endpoint, stats_path: str | None) -> None:
     chip is then dead, and its process ends). With ``stats_path`` (``STATS_ENV``, for
     bench.board_busy), also time each request on the host clock, how long the board waited
     for it and how long it took to handle, and write the times there as JSON at the end."""
-    clock = cpu_clock = None
-    if stats_path is not None:
-        import time
+    import time
 
-        clock = time.perf_counter
-        cpu_clock = time.thread_time  # host CPU time: what the wall time was, minus steal
+    timed = stats_path is not None
+    clock = time.perf_counter
+    cpu_clock = time.thread_time  # host CPU time: what the wall time was, minus steal
     waits: list[float] = []
     busy: list[float] = []
     busy_cpu: list[float] = []
     try:
         while True:
-            t0 = clock() if clock else 0.0
+            t0 = clock() if timed else 0.0
             try:
                 request = ch.recv()
             except (ChannelClosed, PeerDied):
                 return
-            if clock and cpu_clock:
+            if timed:
                 t1 = clock()
                 c1 = cpu_clock()
                 reply = endpoint.handle(request)

@@ -1,8 +1,8 @@
 """Lockstep traces: writing (:class:`TraceWriter`, for the orchestrator), reading and replaying.
 
 A trace holds, per board and quantum, the records that went in and came out, and the control
-calls each board received. Replaying a board
-rebuilds it from the factory in the header and feeds it the recorded inputs, quantum by quantum;
+calls each board received. Replaying a board rebuilds it from the factory in the header and
+feeds it the recorded inputs and calls, in order;
 since a board is deterministic, it must produce the recorded outputs again. That makes a trace
 both a debugging aid (run one board alone under a debugger with the exact inputs of a failing
 system run) and a regression oracle.
@@ -103,9 +103,9 @@ def replay_board(path: str, board: str, max_mismatches: int = 10,
     info, records = read_trace(path)
     if board not in info["boards"]:
         raise TraceError(f"{path}: no board {board!r} (boards: {', '.join(info['boards'])})")
-    factory, kwargs = info["boards"][board][0], {**info["boards"][board][1], **(kwargs or {})}
+    factory, recorded_kwargs = info["boards"][board]
     quantum = info["quantum_ns"]
-    handle = LocalHandle(board, factory, kwargs)
+    handle = LocalHandle(board, factory, {**recorded_kwargs, **(kwargs or {})})
     quanta = 0
     mismatches: list[Mismatch] = []
     try:
@@ -113,10 +113,11 @@ def replay_board(path: str, board: str, max_mismatches: int = 10,
             if name != board:
                 continue
             if until_ns is None:  # a control call (shell command, parameter, fault)
+                method, args = inputs, outputs
                 try:
-                    handle.call(inputs, *outputs)
+                    handle.call(method, *args)
                 except RuntimeError:
-                    pass  # it failed when recorded too (the board answered an error)
+                    pass  # a refused call (bad argument) is refused again; the board runs on
                 continue
             handle.post_advance(until_ns - quantum, until_ns, inputs)
             got, _ = handle.wait_advance()
