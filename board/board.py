@@ -22,7 +22,7 @@ tuples), so it can be marshalled to another process unchanged. The payload per p
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -33,7 +33,7 @@ __all__ = ["Board", "PortInfo", "Record"]
 #: (port, t_ns, payload)
 Record = tuple[str, int, Any]
 
-PORT_KINDS = ("uart", "pin", "pwm", "can", "value")
+PORT_KINDS: Final[tuple[str, ...]] = ("uart", "pin", "pwm", "can", "value")
 
 
 @dataclass(frozen=True)

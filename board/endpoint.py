@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 import marshal
 import traceback
-from typing import Any
+from typing import Any, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -28,8 +28,12 @@ from board.board import Board, Record
 __all__ = ["Endpoint", "LocalHandle", "BoardDied", "build_board", "OP_ADVANCE", "OP_CALL",
            "OP_STOP", "R_OK", "R_RESULT", "R_ERROR"]
 
-OP_ADVANCE, OP_CALL, OP_STOP = 0, 1, 2
-R_OK, R_RESULT, R_ERROR = 0, 1, 2
+OP_ADVANCE: Final = 0
+OP_CALL: Final = 1
+OP_STOP: Final = 2
+R_OK: Final = 0
+R_RESULT: Final = 1
+R_ERROR: Final = 2
 
 _dumps = marshal.dumps
 _loads = marshal.loads

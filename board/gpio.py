@@ -37,7 +37,7 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Final
 
 from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
 
@@ -50,7 +50,7 @@ PinListener = Callable[["Pin", int, int], None]
 #: ``handler(pin, t_ns)``: EXTI interrupt handler, runs in interrupt context.
 PinHandler = Callable[["Pin", int], None]
 
-_PIN_NAME = re.compile(r"^P([A-K])(\d{1,2})$")
+_PIN_NAME: Final = re.compile(r"^P([A-K])(\d{1,2})$")
 _PULLS = (None, "up", "down")
 
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import errno
 from collections.abc import Sequence
+from typing import Final
 
 from mypy_extensions import mypyc_attr
 
@@ -41,10 +42,10 @@ from board.kernel import Kernel
 __all__ = ["SMBUS_BLOCK_MAX", "I2cBus", "I2cFault", "I2cHandle", "I2cTarget"]
 
 #: smbus2 / Linux I2C_SMBUS_BLOCK_MAX: longest block an SMBus block call may move.
-SMBUS_BLOCK_MAX = 32
+SMBUS_BLOCK_MAX: Final = 32
 
-_EIO = -errno.EIO
-_ETIMEDOUT = -errno.ETIMEDOUT
+_EIO: Final = -errno.EIO
+_ETIMEDOUT: Final = -errno.ETIMEDOUT
 
 
 class I2cFault:

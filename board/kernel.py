@@ -15,7 +15,7 @@ keeps the hot loop fast; a cancelled entry has ``fn`` set to ``None`` and is ski
 from __future__ import annotations
 
 import heapq
-from typing import Any, Callable
+from typing import Any, Callable, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -33,18 +33,18 @@ __all__ = [
     "NS_PER_S",
 ]
 
-NS_PER_US = 1_000
-NS_PER_MS = 1_000_000
-NS_PER_S = 1_000_000_000
+NS_PER_US: Final = 1_000
+NS_PER_MS: Final = 1_000_000
+NS_PER_S: Final = 1_000_000_000
 
 #: Hardware state changes (a sensor latching a sample, a wire delivering a byte).
-PRIO_HW = -20
+PRIO_HW: Final = -20
 #: Interrupt handlers (EXTI, timer, UART, HRT callouts).
-PRIO_ISR = -10
+PRIO_ISR: Final = -10
 #: Anything not otherwise classified.
-PRIO_DEFAULT = 0
+PRIO_DEFAULT: Final = 0
 #: Threads: work queue dispatch and tasks (work queues add their own offset, higher runs first).
-PRIO_THREAD = 100
+PRIO_THREAD: Final = 100
 
 _heappush = heapq.heappush
 _heappop = heapq.heappop

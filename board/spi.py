@@ -30,6 +30,7 @@ MISO idles high: with no device on a chip select every byte reads 0xFF.
 from __future__ import annotations
 
 import logging
+from typing import Final
 
 from mypy_extensions import mypyc_attr
 
@@ -39,7 +40,7 @@ __all__ = ["SpiBus", "SpiBusError", "SpiHandle", "SpiTarget", "SpiTransaction"]
 
 log = logging.getLogger(__name__)
 
-_MODES = (0, 1, 2, 3)
+_MODES: Final[tuple[int, ...]] = (0, 1, 2, 3)
 
 
 @mypyc_attr(native_class=False)
@@ -124,7 +125,7 @@ class SpiTarget:
 
 
 #: Target classes that keep SpiTarget's public select/exchange/deselect (see _plain_target).
-_PLAIN_TARGETS: dict[type, bool] = {}
+_PLAIN_TARGETS: Final[dict[type, bool]] = {}
 
 
 def _plain_target(cls: type) -> bool:

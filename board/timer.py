@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from typing import Final
 
 from board.gpio import Pin
 from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
@@ -47,22 +48,31 @@ PwmListener = Callable[[int, int, int], None]
 TimerIrqHandler = Callable[["Timer", int], None]
 
 #: Register map: offset -> (name, reset value; None = depends on the counter width).
-REGISTERS: dict[int, tuple[str, int | None]] = {
+REGISTERS: Final[dict[int, tuple[str, int | None]]] = {
     0x00: ("CR1", 0), 0x04: ("CR2", 0), 0x08: ("SMCR", 0), 0x0C: ("DIER", 0),
     0x10: ("SR", 0), 0x14: ("EGR", 0), 0x18: ("CCMR1", 0), 0x1C: ("CCMR2", 0),
     0x20: ("CCER", 0), 0x24: ("CNT", 0), 0x28: ("PSC", 0), 0x2C: ("ARR", None),
     0x30: ("RCR", 0), 0x34: ("CCR1", 0), 0x38: ("CCR2", 0), 0x3C: ("CCR3", 0),
     0x40: ("CCR4", 0), 0x44: ("BDTR", 0),
 }
-OFFSETS = {name: off for off, (name, _) in REGISTERS.items()}
-_CCR_INDEX = {"CCR1": 0, "CCR2": 1, "CCR3": 2, "CCR4": 3}  # Timer.write fast path
+OFFSETS: Final = {name: off for off, (name, _) in REGISTERS.items()}
+_CCR_INDEX: Final = {"CCR1": 0, "CCR2": 1, "CCR3": 2, "CCR4": 3}  # Timer.write fast path
 
 # Bit positions (RM0090 / RM0041).
-CR1_CEN, CR1_UDIS, CR1_URS, CR1_OPM, CR1_DIR, CR1_CMS, CR1_ARPE = 1, 2, 4, 8, 0x10, 0x60, 0x80
+CR1_CEN: Final = 1
+CR1_UDIS: Final = 2
+CR1_URS: Final = 4
+CR1_OPM: Final = 8
+CR1_DIR: Final = 0x10
+CR1_CMS: Final = 0x60
+CR1_ARPE: Final = 0x80
 DIER_UIE = SR_UIF = EGR_UG = 1
-BDTR_MOE = 1 << 15
-OCM_FORCE_LOW, OCM_FORCE_HIGH, OCM_PWM1, OCM_PWM2 = 4, 5, 6, 7
-_UNMODELLED_CR1 = CR1_UDIS | CR1_OPM | CR1_DIR | CR1_CMS
+BDTR_MOE: Final = 1 << 15
+OCM_FORCE_LOW: Final = 4
+OCM_FORCE_HIGH: Final = 5
+OCM_PWM1: Final = 6
+OCM_PWM2: Final = 7
+_UNMODELLED_CR1: Final = CR1_UDIS | CR1_OPM | CR1_DIR | CR1_CMS
 
 
 def cc_if(ch: int) -> int:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Final
 
 from board.kernel import PRIO_ISR, Kernel, call_in_isr
 from board.uart_line import (
@@ -43,9 +43,9 @@ __all__ = ["BREAK", "FE", "LBD", "NF", "ORE", "PE", "DirectLink", "RecordingLink
 
 #: Runs after every other event of the same nanosecond, so that writes made in that instant
 #: are known before the line decoder assumes the line went idle.
-_PRIO_LAST = 1 << 30
+_PRIO_LAST: Final = 1 << 30
 
-_MASK7 = bytes(b & 0x7F for b in range(256))
+_MASK7: Final = bytes(b & 0x7F for b in range(256))
 
 RxHandler = Callable[[int, int, int], Any]
 TimeHandler = Callable[[int], Any]

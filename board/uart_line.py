@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Final
 
 __all__ = [
     "BREAK",
@@ -39,21 +40,21 @@ __all__ = [
     "frame_levels",
 ]
 
-NS_PER_S = 1_000_000_000
+NS_PER_S: Final = 1_000_000_000
 
 #: Parity error (USART_SR.PE).
-PE = 0x01
+PE: Final = 0x01
 #: Framing error: the first stop bit was sampled as space (USART_SR.FE).
-FE = 0x02
+FE: Final = 0x02
 #: Noise flag (USART_SR.NF); never set by this model.
-NF = 0x04
+NF: Final = 0x04
 #: Overrun: a byte arrived while the receive buffer was full and was lost (USART_SR.ORE).
-ORE = 0x08
+ORE: Final = 0x08
 #: Break: an all-space character (data, parity and stop bit all space) (USART_SR.LBD position).
-LBD = 0x100
+LBD: Final = 0x100
 
-_PARITIES = ("N", "E", "O")
-_MAX_BAUD = 100_000_000
+_PARITIES: Final[tuple[str, ...]] = ("N", "E", "O")
+_MAX_BAUD: Final = 100_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,7 +130,7 @@ class LineBreak:
 
 
 #: The break marker a transmitter passes as ``data`` in ``link.transmit``.
-BREAK = LineBreak()
+BREAK: Final = LineBreak()
 
 
 def _parity_bit(value: int, parity: str) -> int:
@@ -161,8 +162,8 @@ def burst_levels(config: UartConfig, data: bytes | LineBreak) -> list[int]:
     return levels
 
 
-_FLIP = bytes([1, 0]) + bytes(254)  # translate table: level 0 <-> 1
-_FALL = b"\x01\x00"  # a mark bit followed by a space bit: a falling edge between them
+_FLIP: Final = bytes([1, 0]) + bytes(254)  # translate table: level 0 <-> 1
+_FALL: Final = b"\x01\x00"  # a mark bit followed by a space bit: a falling edge between them
 
 
 @lru_cache(maxsize=64)

@@ -8,10 +8,11 @@ ESCs, RC receiver, battery); every other name is a board.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 __all__ = ["Wire", "WORLD", "uart_link", "PIXHAWK1"]
 
-WORLD = "world"
+WORLD: Final = "world"
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ def uart_link(a: tuple[str, str], b: tuple[str, str], about: str = "") -> list[W
 
 
 #: The Pixhawk 1 (FMUv2 + IOv2) system: what is soldered and plugged together.
-PIXHAWK1: list[Wire] = [
+PIXHAWK1: Final[list[Wire]] = [
     *uart_link(("fmu", "io_link"), ("io", "fmu_link"),
                "FMU USART6 <-> IO USART2, 1.5 Mbit/s 8N1 (PX4IO protocol)"),
     Wire((WORLD, "truth"), ("fmu", "truth"),

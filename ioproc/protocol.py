@@ -21,7 +21,7 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum, IntEnum, IntFlag
-from typing import Protocol
+from typing import Final, Protocol
 
 from mypy_extensions import mypyc_attr
 
@@ -33,24 +33,24 @@ class Era(str, Enum):
 
 
 #: The era this emulator implements. Change only together with the era-keyed tables.
-ERA: Era = Era.E14
+ERA: Final[Era] = Era.E14
 
 #: PX4IO_PROTOCOL_VERSION reported in CONFIG register 0, per era.
 PROTOCOL_VERSION: dict[Era, int] = {Era.E14: 4}
 
 # --- limits (§1.2) ---------------------------------------------------------------------------
-PKT_MAX_REGS = 32  #: register words a packet buffer holds on both sides
-PKT_HEADER_SIZE = 4  #: count_code, crc, page, offset
-PKT_MAX_SIZE = PKT_HEADER_SIZE + 2 * PKT_MAX_REGS  #: 68 bytes, the IO's RX DMA buffer
-MAX_TRANSFER_LEN = 64  #: PX4IO_MAX_TRANSFER_LEN, reported in CONFIG reg 3
-FMU_MAX_REGS_PER_CALL = (MAX_TRANSFER_LEN - 2) // 2  #: 31: what the FMU driver sends at most
-PKT_CODE_MASK = 0xC0
-PKT_COUNT_MASK = 0x3F
-FMU_WRITE_PADDING = 0x55AA  #: what the FMU leaves in unused buffer slots (§1.7)
+PKT_MAX_REGS: Final = 32  #: register words a packet buffer holds on both sides
+PKT_HEADER_SIZE: Final = 4  #: count_code, crc, page, offset
+PKT_MAX_SIZE: Final = PKT_HEADER_SIZE + 2 * PKT_MAX_REGS  #: 68 bytes, the IO's RX DMA buffer
+MAX_TRANSFER_LEN: Final = 64  #: PX4IO_MAX_TRANSFER_LEN, reported in CONFIG reg 3
+FMU_MAX_REGS_PER_CALL: Final = (MAX_TRANSFER_LEN - 2) // 2  #: 31: what the FMU driver sends at most
+PKT_CODE_MASK: Final = 0xC0
+PKT_COUNT_MASK: Final = 0x3F
+FMU_WRITE_PADDING: Final = 0x55AA  #: what the FMU leaves in unused buffer slots (§1.7)
 
 #: Reply timeout and attempts of the FMU driver (§1.7), for the driver that imports this module.
-FMU_REPLY_TIMEOUT_US = 10_000
-FMU_ATTEMPTS = 3
+FMU_REPLY_TIMEOUT_US: Final = 10_000
+FMU_ATTEMPTS: Final = 3
 
 
 class RequestCode(IntEnum):
@@ -85,7 +85,7 @@ def _make_crc8_table(poly: int = 0x07) -> tuple[int, ...]:
     return tuple(table)
 
 
-CRC8_TABLE: tuple[int, ...] = _make_crc8_table()
+CRC8_TABLE: Final[tuple[int, ...]] = _make_crc8_table()
 
 
 def crc8(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
@@ -203,7 +203,7 @@ class PacketLayout:
 
 
 #: The one PX4IO packet layout (§1.2).
-LAYOUT = PacketLayout()
+LAYOUT: Final = PacketLayout()
 
 
 # --- errors the FMU side sees ------------------------------------------------------------------
@@ -378,7 +378,7 @@ class ArmingA(IntFlag):
 
 
 #: SETUP_ARMING bit layout per era; ``Arming`` is the one of :data:`ERA`.
-ARMING_LAYOUT: dict[Era, type[IntFlag]] = {Era.E14: ArmingA}
+ARMING_LAYOUT: Final[dict[Era, type[IntFlag]]] = {Era.E14: ArmingA}
 Arming = ArmingA
 
 
@@ -391,19 +391,19 @@ class RcConfig(IntEnum):
     OPTIONS = 5
 
 
-RC_CONFIG_STRIDE = 6
-RC_INPUT_CHANNELS = 18
-RC_OPTIONS_ENABLED = 0x01
-RC_OPTIONS_REVERSE = 0x02
-RC_ASSIGN_MODESWITCH = 100
-RC_ASSIGN_UNASSIGNED = 255
-CONTROL_GROUPS = 4
-CONTROL_CHANNELS = 8
-SERVO_COUNT = 8
-REBOOT_BL_MAGIC = 14662
-FORCE_SAFETY_MAGIC = 22027
-REBOOT_DELAY_US = 100_000
-PWM_IGNORE_THIS_CHANNEL = 0xFFFF
+RC_CONFIG_STRIDE: Final = 6
+RC_INPUT_CHANNELS: Final = 18
+RC_OPTIONS_ENABLED: Final = 0x01
+RC_OPTIONS_REVERSE: Final = 0x02
+RC_ASSIGN_MODESWITCH: Final = 100
+RC_ASSIGN_UNASSIGNED: Final = 255
+CONTROL_GROUPS: Final = 4
+CONTROL_CHANNELS: Final = 8
+SERVO_COUNT: Final = 8
+REBOOT_BL_MAGIC: Final = 14662
+FORCE_SAFETY_MAGIC: Final = 22027
+REBOOT_DELAY_US: Final = 100_000
+PWM_IGNORE_THIS_CHANNEL: Final = 0xFFFF
 
 
 
@@ -487,8 +487,8 @@ class RegisterStore(Protocol):
 
 
 _log = logging.getLogger(__name__)
-_CORRUPT_CRC = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CRC_PAGE_OFFSET, ())
-_CORRUPT_CODE = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CODE_PAGE_OFFSET, ())
+_CORRUPT_CRC: Final = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CRC_PAGE_OFFSET, ())
+_CORRUPT_CODE: Final = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CODE_PAGE_OFFSET, ())
 
 
 def handle_request(packet: bytes | bytearray | memoryview, store: RegisterStore,

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 from math import isnan
+from typing import Final
 
 from ioproc.protocol import ERA, Era
 
@@ -39,7 +40,7 @@ class LimitTiming:
 
 
 #: INIT/RAMP durations per era (E14: 500 ms / 2.5 s; 2016-05+: 50 ms / 0.5 s).
-TIMING: dict[Era, LimitTiming] = {Era.E14: LimitTiming(500_000, 2_500_000)}
+TIMING: Final[dict[Era, LimitTiming]] = {Era.E14: LimitTiming(500_000, 2_500_000)}
 
 
 def _half(value: int) -> int:

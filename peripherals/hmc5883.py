@@ -27,6 +27,7 @@ every axis; ``drdy_stuck`` silences DRDY; ``bias_step`` adds gauss.
 from __future__ import annotations
 
 import logging
+from typing import Final
 
 import numpy as np
 
@@ -50,9 +51,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-I2C_ADDRESS = 0x1E
+I2C_ADDRESS: Final = 0x1E
 
-REGISTERS = [
+REGISTERS: Final = [
     Reg(0x00, "CRA", reset=0x10, fields=[Field("MA", 5, 2, "samples averaged: 1, 2, 4, 8"),
                                          Field("DO", 2, 3, "continuous output rate code"),
                                          Field("MS", 0, 2, "00 normal, 01 +bias, 10 -bias")],
@@ -74,19 +75,19 @@ REGISTERS = [
 ]
 
 #: CRB.GN -> LSB per gauss (reference sheet 5.4).
-GAIN_LSB_PER_GA = (1370, 1090, 820, 660, 440, 390, 330, 230)
+GAIN_LSB_PER_GA: Final[tuple[int, ...]] = (1370, 1090, 820, 660, 440, 390, 330, 230)
 #: CRA.DO -> continuous output rate in Hz (code 7 is reserved: treated as 75 Hz, logged).
-DATA_RATE_HZ = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, 75.0)
+DATA_RATE_HZ: Final[tuple[float, ...]] = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, 75.0)
 #: Self-test field in gauss on X, Y, Z (open point 6 of the reference sheet).
-SELF_TEST_GA = (1.16, 1.16, 1.08)
+SELF_TEST_GA: Final[tuple[float, ...]] = (1.16, 1.16, 1.08)
 #: What an overflowed axis reads.
-OVERFLOW = -4096
+OVERFLOW: Final = -4096
 
-MEASUREMENT_NS = 6_000_000     # single measurement, MA = 1 (~6 ms, max 160 Hz)
-RDY_LOW_NS = 250 * NS_PER_US   # RDY clear / DRDY low before and while data land
-MAG_NOISE_GA = 0.002           # datasheet noise floor (standard deviation)
-_IDLE_AFTER_SINGLE = 0x03      # MD read back after a single measurement (open point 7)
-_DATA = range(0x03, 0x09)
+MEASUREMENT_NS: Final = 6_000_000     # single measurement, MA = 1 (~6 ms, max 160 Hz)
+RDY_LOW_NS: Final = 250 * NS_PER_US   # RDY clear / DRDY low before and while data land
+MAG_NOISE_GA: Final = 0.002           # datasheet noise floor (standard deviation)
+_IDLE_AFTER_SINGLE: Final = 0x03      # MD read back after a single measurement (open point 7)
+_DATA: Final = range(0x03, 0x09)
 
 
 class Hmc5883(I2cTarget):

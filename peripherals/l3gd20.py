@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import partial
+from typing import Final
 
 import numpy as np
 
@@ -53,16 +54,16 @@ __all__ = [
     "L3gd20",
 ]
 
-WHO_AM_I_L3GD20 = 0xD4
-_DPS = math.pi / 180.0
+WHO_AM_I_L3GD20: Final = 0xD4
+_DPS: Final = math.pi / 180.0
 
 #: CTRL_REG1.DR -> output data rate in milli-hertz (sheet 2.6).
-ODR_MHZ = (95_000, 190_000, 380_000, 760_000)
-ODR_HZ = tuple(m / 1000 for m in ODR_MHZ)
+ODR_MHZ: Final[tuple[int, ...]] = (95_000, 190_000, 380_000, 760_000)
+ODR_HZ: Final = tuple(m / 1000 for m in ODR_MHZ)
 #: CTRL_REG4.FS -> sensitivity in mdps per digit (11 is 2000 dps as 10).
-SENSITIVITY_MDPS = (8.75, 17.5, 70.0, 70.0)
+SENSITIVITY_MDPS: Final[tuple[float, ...]] = (8.75, 17.5, 70.0, 70.0)
 
-DEFAULT_ERRORS = AxisErrors(
+DEFAULT_ERRORS: Final = AxisErrors(
     noise_density=0.03 * _DPS,        # rad/s/sqrt(Hz)
     bias=0.2 * _DPS,                  # rad/s, per-axis spread
     bias_instability=0.002 * _DPS,    # rad/s/sqrt(s)
@@ -71,9 +72,9 @@ DEFAULT_ERRORS = AxisErrors(
     temp_coeff=0.03 * _DPS,           # rad/s/degC
 )
 
-_OUT = ("OUT_X_L", "OUT_X_H", "OUT_Y_L", "OUT_Y_H", "OUT_Z_L", "OUT_Z_H")
+_OUT: Final[tuple[str, ...]] = ("OUT_X_L", "OUT_X_H", "OUT_Y_L", "OUT_Y_H", "OUT_Z_L", "OUT_Z_H")
 
-REGISTERS: list[Reg] = [
+REGISTERS: Final[list[Reg]] = [
     *(Reg(a, f"RESERVED_{a:02X}", doc="reserved; plain storage (PX4 uses 0x05)")
       for a in range(0x0F)),
     Reg(0x0F, "WHO_AM_I", reset=WHO_AM_I_L3GD20, access="r"),
@@ -109,7 +110,7 @@ REGISTERS: list[Reg] = [
 
 #: FIFO_CTRL_REG.FM -> channel FIFO mode (Stream-to-FIFO as Stream, Bypass-to-Stream as Bypass:
 #: their switch events come from the unmodelled interrupt generator).
-_FM = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
+_FM: Final = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
 
 
 class L3gd20(StSpiTarget):

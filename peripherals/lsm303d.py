@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from functools import partial
+from typing import Final
 
 import numpy as np
 
@@ -61,21 +62,21 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-WHO_AM_I_LSM303D = 0x49
+WHO_AM_I_LSM303D: Final = 0x49
 
 #: CTRL1.AODR -> accel ODR in milli-hertz (0: power-down; 11..15 not in the table: power-down).
-ACCEL_ODR_MHZ = (0, 3_125, 6_250, 12_500, 25_000, 50_000, 100_000, 200_000, 400_000,
+ACCEL_ODR_MHZ: Final[tuple[int, ...]] = (0, 3_125, 6_250, 12_500, 25_000, 50_000, 100_000, 200_000, 400_000,
                  800_000, 1_600_000)
 #: CTRL5.M_ODR -> mag ODR in milli-hertz (6, 7 reserved: no conversions).
-MAG_ODR_MHZ = (3_125, 6_250, 12_500, 25_000, 50_000, 100_000)
+MAG_ODR_MHZ: Final[tuple[int, ...]] = (3_125, 6_250, 12_500, 25_000, 50_000, 100_000)
 #: CTRL2.AFS -> mg per LSB.
-ACCEL_MG_LSB = (0.061, 0.122, 0.183, 0.244, 0.732)
+ACCEL_MG_LSB: Final[tuple[float, ...]] = (0.061, 0.122, 0.183, 0.244, 0.732)
 #: CTRL6.MFS -> mgauss per LSB.
-MAG_MGAUSS_LSB = (0.080, 0.160, 0.320, 0.479)
+MAG_MGAUSS_LSB: Final[tuple[float, ...]] = (0.080, 0.160, 0.320, 0.479)
 #: CTRL2.ABW -> anti-alias filter bandwidth in Hz.
-ACCEL_ABW_HZ = (773.0, 194.0, 362.0, 50.0)
+ACCEL_ABW_HZ: Final[tuple[float, ...]] = (773.0, 194.0, 362.0, 50.0)
 
-ACCEL_ERRORS = AxisErrors(
+ACCEL_ERRORS: Final = AxisErrors(
     noise_density=150e-6 * G0,   # 150 ug/sqrt(Hz) (datasheet typical), in m/s^2/sqrt(Hz)
     bias=0.010 * G0,             # residual zero-g offset spread
     bias_instability=0.0002 * G0,
@@ -83,16 +84,16 @@ ACCEL_ERRORS = AxisErrors(
     misalignment_rad=0.002,
     temp_coeff=0.0005 * G0,      # +-0.5 mg/degC
 )
-MAG_ERRORS = AxisErrors(
+MAG_ERRORS: Final = AxisErrors(
     noise_density=1.0e-3,        # gauss/sqrt(Hz): 5 mgauss RMS at 50 Hz, high resolution
     bias=0.005,
     scale_error=0.01,
     misalignment_rad=0.002,
 )
 
-_OUT_M = ("OUT_X_L_M", "OUT_X_H_M", "OUT_Y_L_M", "OUT_Y_H_M", "OUT_Z_L_M", "OUT_Z_H_M")
-_OUT_A = ("OUT_X_L_A", "OUT_X_H_A", "OUT_Y_L_A", "OUT_Y_H_A", "OUT_Z_L_A", "OUT_Z_H_A")
-_STATUS_FIELDS = ("ZYX{0}OR", "Z{0}OR", "Y{0}OR", "X{0}OR", "ZYX{0}DA", "Z{0}DA", "Y{0}DA",
+_OUT_M: Final[tuple[str, ...]] = ("OUT_X_L_M", "OUT_X_H_M", "OUT_Y_L_M", "OUT_Y_H_M", "OUT_Z_L_M", "OUT_Z_H_M")
+_OUT_A: Final[tuple[str, ...]] = ("OUT_X_L_A", "OUT_X_H_A", "OUT_Y_L_A", "OUT_Y_H_A", "OUT_Z_L_A", "OUT_Z_H_A")
+_STATUS_FIELDS: Final[tuple[str, ...]] = ("ZYX{0}OR", "Z{0}OR", "Y{0}OR", "X{0}OR", "ZYX{0}DA", "Z{0}DA", "Y{0}DA",
                   "X{0}DA")
 
 
@@ -108,7 +109,7 @@ def _ig(addr: int, n: int) -> list[Reg]:
             Reg(addr + 2, f"IG_THS{n}"), Reg(addr + 3, f"IG_DUR{n}")]
 
 
-REGISTERS: list[Reg] = [
+REGISTERS: Final[list[Reg]] = [
     *(Reg(a, f"RESERVED_{a:02X}", doc="reserved; storage (PX4 reads 0x00, legacy uses 0x02)")
       for a in range(0x05)),
     Reg(0x05, "TEMP_OUT_L", access="r"),
@@ -157,8 +158,8 @@ REGISTERS: list[Reg] = [
     Reg(0x3E, "Act_THS"), Reg(0x3F, "Act_DUR"),
 ]
 
-_FM = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
-_ZERO_SRC = ("INT_SRC_M", "IG_SRC1", "IG_SRC2", "CLICK_SRC")
+_FM: Final = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
+_ZERO_SRC: Final[tuple[str, ...]] = ("INT_SRC_M", "IG_SRC1", "IG_SRC2", "CLICK_SRC")
 
 
 def _s16(lo: int, hi: int) -> int:

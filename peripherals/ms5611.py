@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
+from typing import Final
 
 import numpy as np
 
@@ -45,17 +46,17 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-CMD_RESET = 0x1E
-CMD_ADC_READ = 0x00
-CMD_CONVERT_D1 = 0x40
-CMD_CONVERT_D2 = 0x50
-CMD_PROM_READ = 0xA0
+CMD_RESET: Final = 0x1E
+CMD_ADC_READ: Final = 0x00
+CMD_CONVERT_D1: Final = 0x40
+CMD_CONVERT_D2: Final = 0x50
+CMD_PROM_READ: Final = 0xA0
 
 #: Datasheet coefficients with words 0 and 7 = 0: a valid CRC-4 (fixtures README section 4).
-DEFAULT_PROM: tuple[int, ...] = (0, 40127, 36924, 23317, 23282, 33464, 28312, 0)
+DEFAULT_PROM: Final[tuple[int, ...]] = (0, 40127, 36924, 23317, 23282, 33464, 28312, 0)
 
 #: OSR -> (min, typ, max) conversion time in ms (reference sheet 4.3).
-CONVERSION_TIME_MS: dict[int, tuple[float, float, float]] = {
+CONVERSION_TIME_MS: Final[dict[int, tuple[float, float, float]]] = {
     256: (0.48, 0.54, 0.60),
     512: (0.95, 1.06, 1.17),
     1024: (1.88, 2.08, 2.28),
@@ -65,7 +66,7 @@ CONVERSION_TIME_MS: dict[int, tuple[float, float, float]] = {
 
 #: OSR -> (pressure RMS in Pa, temperature RMS in degC): the datasheet resolution table
 #: (0.065 / 0.042 / 0.027 / 0.018 / 0.012 mbar; 0.012 / 0.008 / 0.005 / 0.003 / 0.002 degC).
-NOISE_BY_OSR: dict[int, tuple[float, float]] = {
+NOISE_BY_OSR: Final[dict[int, tuple[float, float]]] = {
     256: (6.5, 0.012),
     512: (4.2, 0.008),
     1024: (2.7, 0.005),
@@ -73,9 +74,9 @@ NOISE_BY_OSR: dict[int, tuple[float, float]] = {
     4096: (1.2, 0.002),
 }
 
-_OSR_CODES = (256, 512, 1024, 2048, 4096)  # command bits 3:1 = 0..4
-RESET_TIME_NS = 2_800_000
-_ADC_MAX = (1 << 24) - 1
+_OSR_CODES: Final[tuple[int, ...]] = (256, 512, 1024, 2048, 4096)  # command bits 3:1 = 0..4
+RESET_TIME_NS: Final = 2_800_000
+_ADC_MAX: Final = (1 << 24) - 1
 
 
 def crc4(words: tuple[int, ...] | list[int]) -> int:

@@ -13,11 +13,12 @@ sensors' own filters and data rates are modelled by the chips.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Final
 
 __all__ = ["Environment"]
 
 Vec3 = tuple[float, float, float]
-G0 = 9.80665
+G0: Final = 9.80665
 
 
 @dataclass

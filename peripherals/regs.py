@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from dataclasses import dataclass, field
-from typing import Callable, Iterable
+from typing import Callable, Final, Iterable
 
 from mypy_extensions import mypyc_attr
 
@@ -43,7 +43,7 @@ __all__ = ["Field", "Reg", "RegisterFile", "RegisterMapError"]
 
 log = logging.getLogger(__name__)
 
-ACCESS = ("rw", "r", "w", "rc")
+ACCESS: Final[tuple[str, ...]] = ("rw", "r", "w", "rc")
 
 
 @mypyc_attr(native_class=False)

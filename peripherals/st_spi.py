@@ -35,6 +35,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from collections.abc import Callable, Sequence
+from typing import Final
 
 import numpy as np
 
@@ -63,16 +64,19 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-READ_BIT = 0x80
-MS_BIT = 0x40
-ADDR_MASK = 0x3F
+READ_BIT: Final = 0x80
+MS_BIT: Final = 0x40
+ADDR_MASK: Final = 0x3F
 #: Reboot time after BOOT is set (reference 3.6: "clear BOOT after <= 5 ms").
-BOOT_NS = 5_000_000
+BOOT_NS: Final = 5_000_000
 #: FIFO depth in samples (X, Y, Z each) of both parts.
-FIFO_DEPTH = 32
-FIFO_BYPASS, FIFO_FIFO, FIFO_STREAM = 0, 1, 2
+FIFO_DEPTH: Final = 32
+FIFO_BYPASS: Final = 0
+FIFO_FIFO: Final = 1
+FIFO_STREAM: Final = 2
 #: First and last output-register address of the 3-axis block (both parts, accel on LSM303D).
-OUT_FIRST, OUT_LAST = 0x28, 0x2D
+OUT_FIRST: Final = 0x28
+OUT_LAST: Final = 0x2D
 
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
                 tuple[float, float, float]]

@@ -18,7 +18,7 @@ ID (7). This model decodes the NodeStatus of other nodes (the FMU's) to count th
 from __future__ import annotations
 
 import struct
-from typing import Any
+from typing import Any, Final
 
 import can
 
@@ -27,10 +27,11 @@ from board.kernel import PRIO_HW, Kernel
 
 __all__ = ["NODE_STATUS_DTID", "UavcanNode", "decode_node_status", "encode_node_status"]
 
-NODE_STATUS_DTID = 341
+NODE_STATUS_DTID: Final = 341
 #: libuavcan's default transfer priority (0 highest .. 31 lowest)
-PRIORITY_DEFAULT = 16
-HEALTH_OK, MODE_OPERATIONAL = 0, 0
+PRIORITY_DEFAULT: Final = 16
+HEALTH_OK: Final = 0
+MODE_OPERATIONAL: Final = 0
 
 
 def encode_node_status(node_id: int, uptime_s: int, transfer_id: int, health: int = HEALTH_OK,

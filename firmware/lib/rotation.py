@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Final
 
 __all__ = ["PX4_ROTATIONS", "Matrix3", "board_to_sensor", "euler_matrix", "rotation_matrix"]
 
@@ -18,7 +19,7 @@ Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
                 tuple[float, float, float]]
 
 #: PX4 rotation enum -> (name, roll, pitch, yaw) in degrees.
-PX4_ROTATIONS: dict[int, tuple[str, float, float, float]] = {
+PX4_ROTATIONS: Final[dict[int, tuple[str, float, float, float]]] = {
     0: ("ROTATION_NONE", 0, 0, 0), 1: ("ROTATION_YAW_45", 0, 0, 45),
     2: ("ROTATION_YAW_90", 0, 0, 90), 3: ("ROTATION_YAW_135", 0, 0, 135),
     4: ("ROTATION_YAW_180", 0, 0, 180), 5: ("ROTATION_YAW_225", 0, 0, 225),
@@ -34,7 +35,7 @@ PX4_ROTATIONS: dict[int, tuple[str, float, float, float]] = {
     22: ("ROTATION_ROLL_270_YAW_90", 270, 0, 90), 23: ("ROTATION_ROLL_270_YAW_135", 270, 0, 135),
     24: ("ROTATION_PITCH_90", 0, 90, 0), 25: ("ROTATION_PITCH_270", 0, 270, 0),
 }
-_BY_NAME = {name: code for code, (name, *_rest) in PX4_ROTATIONS.items()}
+_BY_NAME: Final = {name: code for code, (name, *_rest) in PX4_ROTATIONS.items()}
 
 
 def _snap(v: float) -> float:

@@ -7,11 +7,13 @@ parameter reference so QGroundControl shows the same names, ranges and meanings.
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["PARAMS"]
 
-PARAMS: tuple[ParamDef, ...] = (
+PARAMS: Final[tuple[ParamDef, ...]] = (
     ParamDef("SYS_AUTOSTART", "INT32", 0, min=0, max=9999999, group="System",
              short="Auto-start script index",
              long="The airframe the startup script configures: the number of a file in "

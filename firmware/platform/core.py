@@ -4,7 +4,7 @@ of the flight stack's modules."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Final
 
 from board.kernel import Kernel
 from firmware.platform.hrt import Hrt
@@ -17,10 +17,14 @@ __all__ = ["Platform", "SEV_EMERG", "SEV_ERR", "SEV_WARN", "SEV_INFO", "SEV_DEBU
 
 
 #: syslog severities used by PX4's log_message
-SEV_EMERG, SEV_ERR, SEV_WARN, SEV_INFO, SEV_DEBUG = 0, 3, 4, 6, 7
-_LEVEL_NAMES = {SEV_EMERG: "EMERG", SEV_ERR: "ERROR", SEV_WARN: "WARN", SEV_INFO: "INFO", SEV_DEBUG: "DEBUG"}
+SEV_EMERG: Final = 0
+SEV_ERR: Final = 3
+SEV_WARN: Final = 4
+SEV_INFO: Final = 6
+SEV_DEBUG: Final = 7
+_LEVEL_NAMES: Final = {SEV_EMERG: "EMERG", SEV_ERR: "ERROR", SEV_WARN: "WARN", SEV_INFO: "INFO", SEV_DEBUG: "DEBUG"}
 
-DMESG_LINES = 2000
+DMESG_LINES: Final = 2000
 
 
 class Platform:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -272,7 +272,7 @@ class WorkItemModule(ModuleBase):
 #: The FMUv2 board's module table: shell name -> "package.module:Class". Entries whose module
 #: does not exist yet are allowed: starting one prints "not available" and a script goes on.
 #: Owners of drivers/modules: point these at your ModuleBase subclass (or adapter).
-FMU_V2_MODULES: dict[str, str] = {
+FMU_V2_MODULES: Final[dict[str, str]] = {
     "mpu6000": "firmware.drivers.modules:Mpu6000Module",
     "l3gd20": "firmware.drivers.modules:L3gd20Module",
     "lsm303d": "firmware.drivers.modules:Lsm303dModule",

@@ -23,7 +23,7 @@ import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -31,7 +31,7 @@ __all__ = ["FieldDef", "MessageDef", "MessageRegistry", "MsgError", "default_reg
            "snake_to_camel"]
 
 # type name -> (struct code, size, python default, C type used in ULog formats)
-PRIMITIVES: dict[str, tuple[str, int, Any, str]] = {
+PRIMITIVES: Final[dict[str, tuple[str, int, Any, str]]] = {
     "bool": ("?", 1, False, "bool"),
     "byte": ("B", 1, 0, "uint8_t"),
     "char": ("c", 1, "", "char"),
@@ -47,15 +47,15 @@ PRIMITIVES: dict[str, tuple[str, int, Any, str]] = {
     "float64": ("d", 8, 0.0, "double"),
 }
 
-_INT_RANGES = {
+_INT_RANGES: Final = {
     "uint8": (0, 0xFF), "byte": (0, 0xFF), "int8": (-0x80, 0x7F),
     "uint16": (0, 0xFFFF), "int16": (-0x8000, 0x7FFF),
     "uint32": (0, 0xFFFFFFFF), "int32": (-0x80000000, 0x7FFFFFFF),
     "uint64": (0, 0xFFFFFFFFFFFFFFFF), "int64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
 }
 
-_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_TYPE_RE = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
+_NAME_RE: Final = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_TYPE_RE: Final = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
 
 
 @mypyc_attr(native_class=False)

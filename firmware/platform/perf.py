@@ -7,16 +7,16 @@ emulated STM32 (time blocked on buses, modelled CPU time), not the host.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
     from firmware.platform.hrt import Hrt
 
 __all__ = ["PerfCounter", "PerfRegistry", "PC_COUNT", "PC_ELAPSED", "PC_INTERVAL"]
 
-PC_COUNT = "count"
-PC_ELAPSED = "elapsed"
-PC_INTERVAL = "interval"
+PC_COUNT: Final = "count"
+PC_ELAPSED: Final = "elapsed"
+PC_INTERVAL: Final = "interval"
 
 
 class PerfCounter:

@@ -12,7 +12,7 @@ code reuses its struct. Subscribers receive the stored snapshot and must treat i
 from __future__ import annotations
 
 from functools import partial
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Final
 
 from firmware.platform.msgdef import MessageDef, MessageRegistry, default_registry
 
@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 __all__ = ["Broker", "TopicNode", "Publication", "Subscription", "SubscriptionInterval",
            "SubscriptionCallback", "ORB_MULTI_MAX_INSTANCES"]
 
-ORB_MULTI_MAX_INSTANCES = 4
+ORB_MULTI_MAX_INSTANCES: Final = 4
 
 
 class TopicNode:

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 from heapq import heappush as _heappush
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -49,7 +49,7 @@ def _table() -> dict[str, WqConfig]:
 
 
 #: PX4's work queue table: name, stack size, relative priority.
-WQ_CONFIGS: dict[str, WqConfig] = _table()
+WQ_CONFIGS: Final[dict[str, WqConfig]] = _table()
 
 
 class WorkQueue:

@@ -6,7 +6,7 @@ and usage lines and returns 1, never raises.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -63,7 +63,7 @@ class _TestError(ValueError):
     pass
 
 
-_INT_OPS = {"-eq": int.__eq__, "-ne": int.__ne__, "-gt": int.__gt__, "-ge": int.__ge__,
+_INT_OPS: Final = {"-eq": int.__eq__, "-ne": int.__ne__, "-gt": int.__gt__, "-ge": int.__ge__,
             "-lt": int.__lt__, "-le": int.__le__}
 
 
@@ -160,7 +160,7 @@ def cmd_help(sh: Shell, argv: list[str]) -> int:
     return 0
 
 
-_VER_USAGE = ["usage: ver {hw|hwcmp NAME...|git|mcu|all}",
+_VER_USAGE: Final = ["usage: ver {hw|hwcmp NAME...|git|mcu|all}",
               "  hw          hardware architecture", "  hwcmp NAME  exit 0 if the board is NAME",
               "  git         firmware git hash", "  mcu         microcontroller",
               "  all         everything"]
@@ -301,7 +301,7 @@ def cmd_cat(sh: Shell, argv: list[str]) -> int:
     return status
 
 
-COMMANDS = {
+COMMANDS: Final = {
     "echo": (cmd_echo, "print the arguments"),
     "set": (cmd_set, "set VAR value: set a shell variable (no arguments: list them)"),
     "unset": (cmd_unset, "unset VAR...: remove shell variables"),

@@ -7,14 +7,14 @@ px4io driver, which uploads the file to the IO's mixer page. The FMU's own outpu
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
     from firmware.shell.interpreter import Shell
 
 __all__ = ["COMMANDS"]
 
-_DEVICES = {"/dev/pwm_output0": ("px4io", "fmu"), "/dev/px4io": ("px4io",),
+_DEVICES: Final = {"/dev/pwm_output0": ("px4io", "fmu"), "/dev/px4io": ("px4io",),
             "/dev/px4fmu": ("fmu",)}
 
 
@@ -35,4 +35,4 @@ def cmd_mixer(sh: Shell, argv: list[str]) -> int:
     return 1
 
 
-COMMANDS = {"mixer": (cmd_mixer, "mixer load <device> <file>: load a mixer into an output driver")}
+COMMANDS: Final = {"mixer": (cmd_mixer, "mixer load <device> <file>: load a mixer into an output driver")}

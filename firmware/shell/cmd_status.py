@@ -8,7 +8,7 @@ item) needs a host clock injected into the :class:`System`; firmware never reads
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
     from firmware.shell.interpreter import Shell
@@ -123,7 +123,7 @@ def cmd_perf(sh: Shell, argv: list[str]) -> int:
     return 0
 
 
-_UORB_USAGE = ["usage: uorb {top [once]|status}",
+_UORB_USAGE: Final = ["usage: uorb {top [once]|status}",
                "  top     topics with publications and rates since the previous uorb top",
                "  status  every topic instance: advertised, publications, queue, losses"]
 
@@ -166,7 +166,7 @@ def cmd_uorb(sh: Shell, argv: list[str]) -> int:
     return sh.usage(_UORB_USAGE)
 
 
-_LISTENER_USAGE = ["usage: listener TOPIC [-n N] [-i INSTANCE]",
+_LISTENER_USAGE: Final = ["usage: listener TOPIC [-n N] [-i INSTANCE]",
                    "  prints the last N messages uORB keeps (1 unless the topic is queued);",
                    "  the shell does not block the emulated CPU, so run it again for newer ones"]
 
@@ -246,7 +246,7 @@ def cmd_listener(sh: Shell, argv: list[str]) -> int:
     return 0
 
 
-COMMANDS = {
+COMMANDS: Final = {
     "top": (cmd_top, "top [once]: work items and queues, run counts, modelled load"),
     "work_queue": (cmd_work_queue, "work_queue status: queues and their items"),
     "perf": (cmd_perf, "perf [reset]: performance counters"),

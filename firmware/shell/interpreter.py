@@ -21,7 +21,7 @@ import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -32,13 +32,13 @@ if TYPE_CHECKING:
 
 __all__ = ["MAX_SCRIPT_DEPTH", "Command", "Shell"]
 
-MAX_SCRIPT_DEPTH = 16
-STATUS_NOT_FOUND = 127
+MAX_SCRIPT_DEPTH: Final = 16
+STATUS_NOT_FOUND: Final = 127
 
 #: a command: fn(shell, argv) -> exit status (argv[0] is the command name)
 CommandFn = Callable[["Shell", list[str]], int]
 
-_ASSIGN = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)=(.*)$", re.DOTALL)
+_ASSIGN: Final = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)=(.*)$", re.DOTALL)
 
 
 @dataclass

@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from typing import Final
 
 from mypy_extensions import mypyc_attr
 
 __all__ = ["OPERATORS", "ShellSyntaxError", "Word", "split_statements", "tokenize"]
 
-OPERATORS = (";", "&&", "||")
+OPERATORS: Final[tuple[str, ...]] = (";", "&&", "||")
 
-_VAR = re.compile(r"\$(?:\{([A-Za-z_][A-Za-z0-9_]*|[0-9]+|[?#])\}|([A-Za-z_][A-Za-z0-9_]*)"
+_VAR: Final = re.compile(r"\$(?:\{([A-Za-z_][A-Za-z0-9_]*|[0-9]+|[?#])\}|([A-Za-z_][A-Za-z0-9_]*)"
                   r"|([0-9?#]))")
 
 

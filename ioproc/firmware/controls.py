@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Final
 
 from board.timer import Timer
 from board.uart import Uart
@@ -42,17 +43,19 @@ from ioproc.rc.ppm import PPM_MIN_CHANNELS_E14
 __all__ = ["RC_CHANNEL_LOW_THRESH", "RC_INPUT_LOST_US", "Controls", "scale_channel"]
 
 #: Override switch position "manual": scaled value below this (§3.6).
-RC_CHANNEL_LOW_THRESH = -8000
+RC_CHANNEL_LOW_THRESH: Final = -8000
 #: No frame from any source for longer than this = RC lost (§3.7).
-RC_INPUT_LOST_US = 200_000
+RC_INPUT_LOST_US: Final = 200_000
 
-F = SF
-_SOURCE_FLAGS = {SBUS: F.RC_SBUS, DSM: F.RC_DSM, PPM: F.RC_PPM, ST24: F.RC_ST24,
+F: Final = SF
+_SOURCE_FLAGS: Final = {SBUS: F.RC_SBUS, DSM: F.RC_DSM, PPM: F.RC_PPM, ST24: F.RC_ST24,
                  SUMD: F.RC_SUMD}
-_ALL_SOURCES = F.RC_SBUS | F.RC_DSM | F.RC_PPM | F.RC_ST24 | F.RC_SUMD
+_ALL_SOURCES: Final = F.RC_SBUS | F.RC_DSM | F.RC_PPM | F.RC_ST24 | F.RC_SUMD
 
 # TIM1 bits used by the PPM capture (RM0041).
-_CC1IF, _CC1OF, _CC1P = 0x0002, 0x0200, 0x0002
+_CC1IF: Final = 0x0002
+_CC1OF: Final = 0x0200
+_CC1P: Final = 0x0002
 
 
 def _c_float_to_int16(value: float) -> int:

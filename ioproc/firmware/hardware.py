@@ -10,6 +10,7 @@ rebuilding the chip.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 from board.adc import Adc
 from board.gpio import Gpio, Pin
@@ -20,11 +21,11 @@ from board.uart import Uart
 __all__ = ["PWM_CHANNELS", "TIMER_CLOCK_HZ", "IoHardware"]
 
 #: All IOv2 timers run from the 24 MHz PCLK (APB prescaler 1, io-and-rc.md §3.1, §8.1).
-TIMER_CLOCK_HZ = 24_000_000
+TIMER_CLOCK_HZ: Final = 24_000_000
 
 #: Output i (0-based) -> (rate group = index into IoHardware.pwm_timers, timer channel),
 #: io-and-rc.md §8.1: group 0 TIM2 (outputs 1-2), group 1 TIM3 (5-8), group 2 TIM4 (3-4).
-PWM_CHANNELS: tuple[tuple[int, int], ...] = (
+PWM_CHANNELS: Final[tuple[tuple[int, int], ...]] = (
     (0, 1), (0, 2), (2, 3), (2, 4), (1, 1), (1, 2), (1, 3), (1, 4))
 
 

@@ -16,6 +16,8 @@ nothing behind; the board then builds a fresh firmware, as a real reset would.
 
 from __future__ import annotations
 
+from typing import Final
+
 from board.kernel import PRIO_ISR, Kernel, Periodic
 from ioproc.firmware.bits import AR, SF
 from ioproc.firmware.controls import Controls
@@ -39,11 +41,11 @@ from ioproc.pwm_limit import PwmLimit
 __all__ = ["LOOP_PERIOD_NS", "IoFirmware"]
 
 #: [model] One main-loop pass per millisecond (see the module docstring).
-LOOP_PERIOD_NS = 1_000_000
+LOOP_PERIOD_NS: Final = 1_000_000
 #: Main-loop priority: after interrupts at the same instant, like a thread.
-PRIO_MAIN = 100
+PRIO_MAIN: Final = 100
 
-F = SF
+F: Final = SF
 
 
 class IoFirmware:

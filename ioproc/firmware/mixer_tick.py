@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from enum import Enum
+from typing import Final
 
 from ioproc.firmware.bits import AL, AR, FE, SF
 from ioproc.firmware.pwm_out import PwmServo
@@ -31,10 +32,12 @@ from ioproc.pwm_limit import PwmLimit
 __all__ = ["FMU_INPUT_DROP_LIMIT_US", "MixSource", "MixerTick"]
 
 #: FMU_INPUT_DROP_LIMIT_US: CONTROLS/DIRECT_PWM silence that counts as FMU loss (§3.3).
-FMU_INPUT_DROP_LIMIT_US = 500_000
+FMU_INPUT_DROP_LIMIT_US: Final = 500_000
 
-F = SF
-_FLAGS, _ALARMS, _ARMING = int(Status.FLAGS), int(Status.ALARMS), int(Setup.ARMING)
+F: Final = SF
+_FLAGS: Final = int(Status.FLAGS)
+_ALARMS: Final = int(Status.ALARMS)
+_ARMING: Final = int(Setup.ARMING)
 
 
 class MixSource(Enum):

@@ -15,21 +15,23 @@ and skips identical writes. That keeps an idle armed IO cheap without changing a
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Final
 
 from board.timer import Timer
 from ioproc.firmware.hardware import PWM_CHANNELS, TIMER_CLOCK_HZ
 
 __all__ = ["CHANNEL_DEFAULT_CCR", "DEFAULT_RATE_HZ", "PwmServo"]
 
-CR1_CEN = 0x0001
-CR1_ARPE = 0x0080
-EGR_UG = 0x0001
-OCM_PWM1 = 6
+CR1_CEN: Final = 0x0001
+CR1_ARPE: Final = 0x0080
+EGR_UG: Final = 0x0001
+OCM_PWM1: Final = 6
 #: CCR preset at channel init (io-and-rc.md §3.2: "CCR preset to 1000").
-CHANNEL_DEFAULT_CCR = 1000
-DEFAULT_RATE_HZ = 50
+CHANNEL_DEFAULT_CCR: Final = 1000
+DEFAULT_RATE_HZ: Final = 50
 #: PWM_RATE_LOWER_LIMIT / UPPER_LIMIT of the timer layer (§3.9).
-RATE_MIN_HZ, RATE_MAX_HZ = 1, 10_000
+RATE_MIN_HZ: Final = 1
+RATE_MAX_HZ: Final = 10_000
 
 
 def _ccmr(channel: int) -> tuple[str, int]:

@@ -20,6 +20,8 @@ SAFETY_OFF, and shows the arming state on the LED inside the button, independent
 
 from __future__ import annotations
 
+from typing import Final
+
 from board.gpio import Pin
 from ioproc.firmware.bits import AR, SF
 from ioproc.pages import RegisterFile
@@ -32,14 +34,14 @@ __all__ = [
     "SafetySwitch",
 ]
 
-ARM_COUNTER_THRESHOLD = 10
-SAFETY_PERIOD_US = 100_000
-SAFETY_FIRST_US = 1_000
-FAILSAFE_BLINK_US = 125_000
-HEARTBEAT_US = 250_000
+ARM_COUNTER_THRESHOLD: Final = 10
+SAFETY_PERIOD_US: Final = 100_000
+SAFETY_FIRST_US: Final = 1_000
+FAILSAFE_BLINK_US: Final = 125_000
+HEARTBEAT_US: Final = 250_000
 
 #: Safety LED patterns (bit i shown on sample i of 16).
-LED_PATTERNS = {
+LED_PATTERNS: Final = {
     "io_fmu_armed": 0xFFFF,
     "io_armed": 0x5050,
     "fmu_armed": 0x5500,
@@ -47,7 +49,7 @@ LED_PATTERNS = {
     "fmu_refuse_to_arm": 0x5555,
 }
 
-F = SF
+F: Final = SF
 
 
 class Leds:

@@ -10,6 +10,7 @@ output driver.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Final
 
 from board.gpio import Pin
 from board.uart import Uart
@@ -17,7 +18,7 @@ from ioproc.rc.sbus import encode_sbus_frame
 
 __all__ = ["SBUS1_FRAME_DELAY_US", "SbusOut"]
 
-SBUS1_FRAME_DELAY_US = 14_000
+SBUS1_FRAME_DELAY_US: Final = 14_000
 
 
 def _us_to_raw(us: int) -> int:

@@ -21,6 +21,8 @@ Model decisions:
 
 from __future__ import annotations
 
+from typing import Final
+
 from board.kernel import Kernel
 from board.uart import FE, NF, ORE, Uart
 from ioproc.protocol import PKT_MAX_SIZE, RegisterStore, handle_request
@@ -28,9 +30,9 @@ from ioproc.protocol import PKT_MAX_SIZE, RegisterStore, handle_request
 __all__ = ["REPLY_LATENCY_NS", "FmuLink"]
 
 #: [model] IDLE interrupt -> first reply start bit.
-REPLY_LATENCY_NS = 20_000
+REPLY_LATENCY_NS: Final = 20_000
 
-_LINE_ERRORS = ORE | NF | FE
+_LINE_ERRORS: Final = ORE | NF | FE
 
 
 class FmuLink:

@@ -22,16 +22,19 @@ Saturation (E14 algorithm, restated):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 from ioproc.mixer.base import ControlSource, Mixer, constrain, fetch
 from ioproc.protocol import ERA, Era
 
-_S = 0.707107
-_C8, _S8 = 0.923880, 0.382683
-_C6, _S6 = 0.866025, 0.500000
+_S: Final = 0.707107
+_C8: Final = 0.923880
+_S8: Final = 0.382683
+_C6: Final = 0.866025
+_S6: Final = 0.500000
 
 #: geometry token in the R: line -> (long name, rotors as (roll, pitch, yaw)).
-ROTOR_TABLES: dict[str, tuple[str, tuple[tuple[float, float, float], ...]]] = {
+ROTOR_TABLES: Final[dict[str, tuple[str, tuple[tuple[float, float, float], ...]]]] = {
     "4x": ("quad_x", ((-_S, _S, 1.0), (_S, -_S, 1.0), (_S, _S, -1.0), (-_S, -_S, -1.0))),
     "4+": ("quad_plus", ((-1.0, 0.0, 1.0), (1.0, 0.0, 1.0), (0.0, 1.0, -1.0), (0.0, -1.0, -1.0))),
     "4v": ("quad_v", ((-0.927184, 0.374607, 1.0), (0.694658, -0.719340, 1.0),
@@ -55,7 +58,7 @@ ROTOR_TABLES: dict[str, tuple[str, tuple[tuple[float, float, float], ...]]] = {
 }
 
 #: Geometry tokens each era's IO accepts in an ``R:`` line.
-GEOMETRIES: dict[Era, frozenset[str]] = {
+GEOMETRIES: Final[dict[Era, frozenset[str]]] = {
     Era.E14: frozenset({"4x", "4+", "4v", "4w", "6x", "6+", "8x", "8+", "8c"}),
 }
 

@@ -13,17 +13,18 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final
 
 from ioproc.mixer.group import MixerGroup
 from ioproc.mixer.parser import MixerRefusal, load_from_buf
 from ioproc.protocol import ERA, Era
 
-F2I_MIXER_MAGIC = 0x6D74
-ACTION_RESET = 0
-ACTION_APPEND = 1
-HEADER_SIZE = 3  #: uint16 magic + uint8 action (packed)
+F2I_MIXER_MAGIC: Final = 0x6D74
+ACTION_RESET: Final = 0
+ACTION_APPEND: Final = 1
+HEADER_SIZE: Final = 3  #: uint16 magic + uint8 action (packed)
 #: IO text buffer size per era.
-TEXT_BUFFER_SIZE: dict[Era, int] = {Era.E14: 256}
+TEXT_BUFFER_SIZE: Final[dict[Era, int]] = {Era.E14: 256}
 
 
 @dataclass(frozen=True)

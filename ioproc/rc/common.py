@@ -14,13 +14,14 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Iterable
+from typing import Final
 
 from mypy_extensions import mypyc_attr
 
-_F32 = struct.Struct("<f")
+_F32: Final = struct.Struct("<f")
 
 #: Output slots the IO's RAW_RC page holds (PX4IO_RC_INPUT_CHANNELS).
-IO_MAX_CHANNELS = 18
+IO_MAX_CHANNELS: Final = 18
 
 
 def f32(x: float) -> float:
@@ -53,8 +54,8 @@ def _crc16_table(poly: int) -> tuple[int, ...]:
     return tuple(table)
 
 
-CRC8_07 = _crc8_table(0x07)
-CRC16_1021 = _crc16_table(0x1021)
+CRC8_07: Final = _crc8_table(0x07)
+CRC16_1021: Final = _crc16_table(0x1021)
 
 
 def crc8_07(data: Iterable[int], crc: int = 0) -> int:

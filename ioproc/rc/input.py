@@ -28,6 +28,7 @@ ADC is not modelled. ST24 packets are used only when their lost count is 0 (PX4 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Final
 
 from ioproc.rc.common import IO_MAX_CHANNELS
 from ioproc.rc.dsm import DsmDecoder
@@ -36,9 +37,13 @@ from ioproc.rc.sbus import FLAG_FAILSAFE, FLAG_FRAME_LOST, SbusDecoder
 from ioproc.rc.st24 import St24Decoder
 from ioproc.rc.sumd import SumdDecoder
 
-RC_LOST_US = 200_000
+RC_LOST_US: Final = 200_000
 
-SBUS, DSM, ST24, SUMD, PPM = "sbus", "dsm", "st24", "sumd", "ppm"
+SBUS: Final = "sbus"
+DSM: Final = "dsm"
+ST24: Final = "st24"
+SUMD: Final = "sumd"
+PPM: Final = "ppm"
 _DSM_PORT = (DSM, ST24, SUMD)
 
 

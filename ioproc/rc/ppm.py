@@ -17,18 +17,19 @@ work in time; differences are then exact, no 16-bit aliasing).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Final
 
-PPM_MIN_PULSE_WIDTH = 200
-PPM_MAX_PULSE_WIDTH = 600
-PPM_MIN_CHANNEL_VALUE = 800
-PPM_MAX_CHANNEL_VALUE = 2200
-PPM_MIN_START = 2300
-PPM_MIN_CHANNELS = 5
-PPM_MIN_CHANNELS_E14 = 6
-PPM_MAX_CHANNELS = 20
-PPM_CHANNEL_LOCK = 4
+PPM_MIN_PULSE_WIDTH: Final = 200
+PPM_MAX_PULSE_WIDTH: Final = 600
+PPM_MIN_CHANNEL_VALUE: Final = 800
+PPM_MAX_CHANNEL_VALUE: Final = 2200
+PPM_MIN_START: Final = 2300
+PPM_MIN_CHANNELS: Final = 5
+PPM_MIN_CHANNELS_E14: Final = 6
+PPM_MAX_CHANNELS: Final = 20
+PPM_CHANNEL_LOCK: Final = 4
 #: The IO consumes a decode only if it is younger than this (§6.4).
-PPM_VALID_US = 200_000
+PPM_VALID_US: Final = 200_000
 
 _UNSYNCH, _ARM, _ACTIVE, _INACTIVE = range(4)
 

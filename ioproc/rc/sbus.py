@@ -19,27 +19,28 @@ expectations (80 frames, not 81) show PX4 does not recover that way, so it is of
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Final
 
 from ioproc.rc.common import IO_MAX_CHANNELS, RcDecoder
 
-SBUS_FRAME_LEN = 25
-SBUS_HEADER = 0x0F
+SBUS_FRAME_LEN: Final = 25
+SBUS_HEADER: Final = 0x0F
 #: End bytes PX4 (2015-12+) accepts: S.BUS1 and the four S.BUS2 slot markers.
-SBUS_END_BYTES = frozenset((0x00, 0x04, 0x14, 0x24, 0x34))
-SBUS_GAP_US_E14 = 3000
-SBUS_GAP_US_2022 = 4000
+SBUS_END_BYTES: Final = frozenset((0x00, 0x04, 0x14, 0x24, 0x34))
+SBUS_GAP_US_E14: Final = 3000
+SBUS_GAP_US_2022: Final = 4000
 
-FLAG_CH17 = 0x01
-FLAG_CH18 = 0x02
-FLAG_FRAME_LOST = 0x04
-FLAG_FAILSAFE = 0x08
+FLAG_CH17: Final = 0x01
+FLAG_CH18: Final = 0x02
+FLAG_FRAME_LOST: Final = 0x04
+FLAG_FAILSAFE: Final = 0x08
 
 #: PX4 µs for the digital channels 17/18.
-SBUS_DIGITAL_ON_US = 1998
-SBUS_DIGITAL_OFF_US = 998
+SBUS_DIGITAL_ON_US: Final = 1998
+SBUS_DIGITAL_OFF_US: Final = 998
 
 #: raw → µs, PX4: (uint16)(raw·0.625f + 0.5f) + 874 (0.625 is exact in float, so this is exact).
-SBUS_RAW_TO_US: tuple[int, ...] = tuple(int(r * 0.625 + 0.5) + 874 for r in range(2048))
+SBUS_RAW_TO_US: Final[tuple[int, ...]] = tuple(int(r * 0.625 + 0.5) + 874 for r in range(2048))
 
 
 def sbus_raw_to_us(raw: int) -> int:

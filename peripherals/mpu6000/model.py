@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
@@ -62,16 +62,19 @@ __all__ = ["Mpu6000", "default_accel_errors", "default_gyro_errors"]
 
 log = logging.getLogger(__name__)
 
-G0 = 9.80665
-DEG = 0.017453292519943295
-RESET_TIME_NS = 100 * NS_PER_MS
-INT_PULSE_NS = 50_000
-REG_CLOCK_LIMIT_HZ = 1_100_000
-DATA_CLOCK_LIMIT_HZ = 22_000_000
+G0: Final = 9.80665
+DEG: Final = 0.017453292519943295
+RESET_TIME_NS: Final = 100 * NS_PER_MS
+INT_PULSE_NS: Final = 50_000
+REG_CLOCK_LIMIT_HZ: Final = 1_100_000
+DATA_CLOCK_LIMIT_HZ: Final = 22_000_000
 
 # Register addresses used on hot paths.
-_INT_STATUS, _FIFO_COUNTH, _FIFO_R_W = 0x3A, 0x72, 0x74
-_DATA_RDY_INT, _FIFO_OFLOW_INT = 0x01, 0x10
+_INT_STATUS: Final = 0x3A
+_FIFO_COUNTH: Final = 0x72
+_FIFO_R_W: Final = 0x74
+_DATA_RDY_INT: Final = 0x01
+_FIFO_OFLOW_INT: Final = 0x10
 
 
 def default_gyro_errors() -> AxisErrors:

@@ -15,6 +15,7 @@ The table is built by a function because two reset values belong to the part, no
 from __future__ import annotations
 
 import math
+from typing import Final
 
 from peripherals.regs import Field, Reg
 
@@ -24,23 +25,24 @@ __all__ = [
     "mpu6000_registers", "self_test_response",
 ]
 
-WHO_AM_I_VALUE = 0x68
-FIFO_SIZE = 1024
+WHO_AM_I_VALUE: Final = 0x68
+FIFO_SIZE: Final = 1024
 #: ACCEL_XOUT_H .. GYRO_ZOUT_L: the block latched per sample and served consistently.
-DATA_FIRST, DATA_LAST = 0x3B, 0x48
+DATA_FIRST: Final = 0x3B
+DATA_LAST: Final = 0x48
 #: Registers readable at up to 20 MHz: INT_STATUS and the sensor data (datasheet), plus the
 #: FIFO count and data port, which PX4 reads on its fast clock and which real parts serve.
-FAST_READ = frozenset(range(0x3A, 0x49)) | {0x72, 0x73, 0x74}
+FAST_READ: Final = frozenset(range(0x3A, 0x49)) | {0x72, 0x73, 0x74}
 
 #: Known PRODUCT_ID codes: engineering samples 0x14-0x18, production 0x54-0x5A (legacy PX4).
-PRODUCT_IDS = {
+PRODUCT_IDS: Final = {
     0x14: "MPU6000ES_REV_C4", 0x15: "MPU6000ES_REV_C5", 0x16: "MPU6000ES_REV_D6",
     0x17: "MPU6000ES_REV_D7", 0x18: "MPU6000ES_REV_D8", 0x54: "MPU6000_REV_C4",
     0x55: "MPU6000_REV_C5", 0x56: "MPU6000_REV_D6", 0x57: "MPU6000_REV_D7",
     0x58: "MPU6000_REV_D8", 0x59: "MPU6000_REV_D9", 0x5A: "MPU6000_REV_D10",
 }
 #: Rev C silicon doubles the accelerometer sensitivity (AFS_SEL=1 gives 4096 LSB/g).
-REV_C_IDS = frozenset({0x14, 0x15, 0x54, 0x55})
+REV_C_IDS: Final = frozenset({0x14, 0x15, 0x54, 0x55})
 
 #: Factory self-test trims (SELF_TEST_X, _Y, _Z, _A). Chosen mid-range so the legacy PX4
 #: factory test passes: accel trims 18/17/19, gyro trims 19/20/18 (5-bit codes).
@@ -160,13 +162,13 @@ def mpu6000_registers(product_id: int, trims: tuple[int, int, int, int]) -> list
 
 #: DLPF_CFG -> (accel bandwidth Hz, gyro bandwidth Hz, gyro output rate Hz). Code 7 is
 #: reserved: modelled as 8 kHz with no filtering beyond the sensor's own (3.6 kHz gyro).
-DLPF_TABLE = {
+DLPF_TABLE: Final = {
     0: (260.0, 256.0, 8000), 1: (184.0, 188.0, 1000), 2: (94.0, 98.0, 1000),
     3: (44.0, 42.0, 1000), 4: (21.0, 20.0, 1000), 5: (10.0, 10.0, 1000),
     6: (5.0, 5.0, 1000), 7: (260.0, 3600.0, 8000),
 }
 
 #: LSB per unit for each FS_SEL (per deg/s) and AFS_SEL (per g), datasheet nominal.
-GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
-ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
-DEG = math.pi / 180.0
+GYRO_LSB_PER_DPS: Final[tuple[float, ...]] = (131.0, 65.5, 32.8, 16.4)
+ACCEL_LSB_PER_G: Final[tuple[float, ...]] = (16384.0, 8192.0, 4096.0, 2048.0)
+DEG: Final = math.pi / 180.0

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import struct
+from typing import Final
 
 import numpy as np
 
@@ -30,10 +31,10 @@ from peripherals.physics import Environment
 
 __all__ = ["SampleEngine"]
 
-G0 = 9.80665
-ACCEL_PERIOD_NS = 1_000_000
-NOISE_BLOCK = 8192
-_PACK7 = struct.Struct(">7h").pack
+G0: Final = 9.80665
+ACCEL_PERIOD_NS: Final = 1_000_000
+NOISE_BLOCK: Final = 8192
+_PACK7: Final = struct.Struct(">7h").pack
 
 
 class SampleEngine:
@@ -291,8 +292,8 @@ class SampleEngine:
 
 
 _ZERO3 = (0.0, 0.0, 0.0)
-_ACCEL_GYRO_COLS = [0, 1, 2, 4, 5, 6]
-_PACKERS: dict[int, object] = {}
+_ACCEL_GYRO_COLS: Final = [0, 1, 2, 4, 5, 6]
+_PACKERS: Final[dict[int, object]] = {}
 
 
 def _packer(n: int):  # noqa: ANN202 - a bound Struct.pack

@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import struct
 from dataclasses import dataclass, field
+from typing import Final
 
 __all__ = [
     "NMEA_IDS",
@@ -30,25 +31,30 @@ __all__ = [
     "ReceiverConfig",
 ]
 
-PROTO_UBX, PROTO_NMEA, PROTO_RTCM2, PROTO_RTCM3 = 0x01, 0x02, 0x04, 0x20
+PROTO_UBX: Final = 0x01
+PROTO_NMEA: Final = 0x02
+PROTO_RTCM2: Final = 0x04
+PROTO_RTCM3: Final = 0x20
 PORT_DDC, PORT_UART1, PORT_UART2, PORT_USB, PORT_SPI = range(5)
-_N_RATE_SLOTS = 6  # I2C, UART1, UART2, USB, SPI, reserved (the CFG-MSG 8-byte form)
+_N_RATE_SLOTS: Final = 6  # I2C, UART1, UART2, USB, SPI, reserved (the CFG-MSG 8-byte form)
 
 #: NMEA standard messages (class 0xF0) by id, in the receiver's output order.
-NMEA_IDS = {0x00: "GGA", 0x01: "GLL", 0x02: "GSA", 0x03: "GSV", 0x04: "RMC", 0x05: "VTG"}
+NMEA_IDS: Final = {0x00: "GGA", 0x01: "GLL", 0x02: "GSA", 0x03: "GSV", 0x04: "RMC", 0x05: "VTG"}
 
 #: Periodic outputs the model can produce; CFG-MSG for anything else is NAKed (the model would
 #: otherwise accept a rate and then silently never send the message).
-OUTPUT_MESSAGES: tuple[tuple[int, int], ...] = (
+OUTPUT_MESSAGES: Final[tuple[tuple[int, int], ...]] = (
     (0x01, 0x03), (0x01, 0x04), (0x01, 0x07), (0x01, 0x30), (0x01, 0x35), (0x0A, 0x09),
     *((0xF0, i) for i in NMEA_IDS),
 )
 
-_BAUDS_OK = range(4800, 921_601)
-_DYN_MODELS = {0, 2, 3, 4, 5, 6, 7, 8, 9, 10}
+_BAUDS_OK: Final = range(4800, 921_601)
+_DYN_MODELS: Final = {0, 2, 3, 4, 5, 6, 7, 8, 9, 10}
 
 # CFG-CFG section bits (clearMask/saveMask/loadMask).
-_SEC_IOPORT, _SEC_MSGCONF, _SEC_NAVCONF = 0x01, 0x02, 0x08
+_SEC_IOPORT: Final = 0x01
+_SEC_MSGCONF: Final = 0x02
+_SEC_NAVCONF: Final = 0x08
 
 
 @dataclass

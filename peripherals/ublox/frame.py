@@ -7,14 +7,15 @@ helper with a bug would make both ends agree on a wrong frame and the tests woul
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Final
 
 __all__ = ["MAX_PAYLOAD", "SYNC1", "SYNC2", "UbxReader", "checksum", "nmea_sentence", "ubx_frame"]
 
-SYNC1 = 0xB5
-SYNC2 = 0x62
+SYNC1: Final = 0xB5
+SYNC2: Final = 0x62
 #: Longest payload the model's input buffer accepts; a longer length field means the bytes were
 #: not a frame (garbage, or another baud rate), so the reader drops it and looks for sync again.
-MAX_PAYLOAD = 1024
+MAX_PAYLOAD: Final = 1024
 
 
 def checksum(body: bytes | bytearray | memoryview) -> tuple[int, int]:

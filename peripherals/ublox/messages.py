@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import datetime
 import struct
+from typing import Final
 
 from peripherals.ublox.frame import nmea_sentence
 from peripherals.ublox.solution import NS_PER_S, Solution
@@ -27,12 +28,12 @@ __all__ = [
     "nmea_messages",
 ]
 
-SW_VERSION = "ROM CORE 3.01 (107888)"
-HW_VERSION = "00080000"
-EXTENSIONS = ("FWVER=SPG 3.01", "PROTVER=18.00", "MOD=NEO-M8N-0")
+SW_VERSION: Final = "ROM CORE 3.01 (107888)"
+HW_VERSION: Final = "00080000"
+EXTENSIONS: Final[tuple[str, ...]] = ("FWVER=SPG 3.01", "PROTVER=18.00", "MOD=NEO-M8N-0")
 
-_U4_MAX = 0xFFFFFFFF
-_UNIX_EPOCH = datetime.datetime(1970, 1, 1)
+_U4_MAX: Final = 0xFFFFFFFF
+_UNIX_EPOCH: Final = datetime.datetime(1970, 1, 1)
 
 
 def _u4(x: float) -> int:

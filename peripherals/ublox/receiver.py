@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
+from typing import Final
 
 import numpy as np
 
@@ -42,10 +43,14 @@ from peripherals.ublox.solution import (
 
 __all__ = ["UbloxM8"]
 
-NS_PER_MS = 1_000_000
-CLS_NAV, CLS_ACK, CLS_CFG, CLS_MON = 0x01, 0x05, 0x06, 0x0A
-ACK_NAK, ACK_ACK = 0x00, 0x01
-CFG_RST = 0x04
+NS_PER_MS: Final = 1_000_000
+CLS_NAV: Final = 0x01
+CLS_ACK: Final = 0x05
+CLS_CFG: Final = 0x06
+CLS_MON: Final = 0x0A
+ACK_NAK: Final = 0x00
+ACK_ACK: Final = 0x01
+CFG_RST: Final = 0x04
 
 
 class UbloxM8:

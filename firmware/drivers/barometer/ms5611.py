@@ -23,7 +23,7 @@ conversion.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Final
 
 from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
@@ -32,22 +32,22 @@ from firmware.platform.perf import PC_COUNT
 
 __all__ = ["DRV_BARO_DEVTYPE_MS5611", "Ms5611Driver", "compensate", "crc4"]
 
-DRV_BARO_DEVTYPE_MS5611 = 0x3D
+DRV_BARO_DEVTYPE_MS5611: Final = 0x3D
 #: Legacy PX4 device number of the barometer on SPI1 (reference sheet 7.3).
-SPI_DEVICE_BARO = 3
+SPI_DEVICE_BARO: Final = 3
 
-CMD_RESET = 0x1E
-CMD_ADC_READ = 0x00
-CMD_PROM_READ = 0xA0
-_OSR_BITS = {256: 0, 512: 1, 1024: 2, 2048: 3, 4096: 4}
+CMD_RESET: Final = 0x1E
+CMD_ADC_READ: Final = 0x00
+CMD_PROM_READ: Final = 0xA0
+_OSR_BITS: Final = {256: 0, 512: 1, 1024: 2, 2048: 3, 4096: 4}
 #: Datasheet maximum conversion time per OSR, in us.
-_CONV_MAX_US = {256: 600, 512: 1170, 1024: 2280, 2048: 4540, 4096: 9040}
+_CONV_MAX_US: Final = {256: 600, 512: 1170, 1024: 2280, 2048: 4540, 4096: 9040}
 
-RESET_WAIT_US = 3000        # PX4 waits 3 ms after RESET before reading the PROM
-RESET_RECOVER_US = 3000     # after a RESET on a collection error (PX4: 2.8 ms; +margin, the
+RESET_WAIT_US: Final = 3000        # PX4 waits 3 ms after RESET before reading the PROM
+RESET_RECOVER_US: Final = 3000     # after a RESET on a collection error (PX4: 2.8 ms; +margin, the
                             # chip counts its 2.8 ms from the end of the command byte)
-STUCK_SAMPLES = 10
-STEP_LIMIT_PA = 500.0       # ~40 m in one 10-40 ms step: not an aircraft
+STUCK_SAMPLES: Final = 10
+STEP_LIMIT_PA: Final = 500.0       # ~40 m in one 10-40 ms step: not an aircraft
 
 
 def crc4(words: list[int]) -> int:

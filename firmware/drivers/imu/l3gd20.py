@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Final
 
 from board.gpio import Pin
 from board.spi import SpiHandle
@@ -37,19 +37,25 @@ from firmware.platform.perf import PC_COUNT
 __all__ = ["DRV_GYR_DEVTYPE_L3GD20", "SPI_DEVICE_GYRO", "L3gd20Driver"]
 
 #: PX4 drv_sensor.h device type.
-DRV_GYR_DEVTYPE_L3GD20 = 0x22
+DRV_GYR_DEVTYPE_L3GD20: Final = 0x22
 #: Legacy PX4 device number of the gyro on SPI1 (reference sheet 7.3), the id's address byte.
-SPI_DEVICE_GYRO = 1
+SPI_DEVICE_GYRO: Final = 1
 
-WHO_AM_I = 0x0F
-CTRL_REG1, CTRL_REG2, CTRL_REG3, CTRL_REG4, CTRL_REG5 = 0x20, 0x21, 0x22, 0x23, 0x24
-FIFO_CTRL_REG = 0x2E
-LOW_ODR = 0x39
-I2C_DISABLE_REG = 0x05
-DIR_READ, ADDR_INCREMENT = 0x80, 0x40
-STATUS_ZYXDA, STATUS_ZYXOR = 0x08, 0x80
+WHO_AM_I: Final = 0x0F
+CTRL_REG1: Final = 0x20
+CTRL_REG2: Final = 0x21
+CTRL_REG3: Final = 0x22
+CTRL_REG4: Final = 0x23
+CTRL_REG5: Final = 0x24
+FIFO_CTRL_REG: Final = 0x2E
+LOW_ODR: Final = 0x39
+I2C_DISABLE_REG: Final = 0x05
+DIR_READ: Final = 0x80
+ADDR_INCREMENT: Final = 0x40
+STATUS_ZYXDA: Final = 0x08
+STATUS_ZYXOR: Final = 0x80
 
-ACCEPTED_IDS = {0xD4: "L3GD20", 0xD7: "L3GD20H", 0xD3: "L3G4200D"}
+ACCEPTED_IDS: Final = {0xD4: "L3GD20", 0xD7: "L3GD20H", 0xD3: "L3G4200D"}
 #: PX4's configuration sequence (sheet 2.8 step 3), in order.
 CONFIG_SEQUENCE = ((CTRL_REG1, 0x0F), (CTRL_REG2, 0x00), (CTRL_REG3, 0x08), (CTRL_REG4, 0x80),
                    (CTRL_REG5, 0x00), (CTRL_REG5, 0x40), (FIFO_CTRL_REG, 0x00),
@@ -58,15 +64,15 @@ CONFIG_SEQUENCE = ((CTRL_REG1, 0x0F), (CTRL_REG2, 0x00), (CTRL_REG3, 0x08), (CTR
 CHECKED = ((CTRL_REG1, 0xEF), (CTRL_REG2, 0x00), (CTRL_REG3, 0x08), (CTRL_REG4, 0xB0),
            (CTRL_REG5, 0x40), (FIFO_CTRL_REG, 0x00), (LOW_ODR, 0x08))
 
-ODR_HZ = 760
-SCALE_RAD_S = 70e-3 * math.pi / 180.0     # 2000 dps: 70 mdps per digit
-POLL_US = 715                              # PX4: 1/760 s - 600 us
-BOOT_WAIT_US = 10_000
-RESET_RETRY_US = 100_000
-DRDY_TIMEOUT_US = 3 * 1_000_000 // ODR_HZ  # three sample periods without an edge
-BAD_TRANSFERS_RESET = 10
-STUCK_SAMPLES = 50
-REPORT_INTERVAL_US = 10_000_000            # repeat a dmesg line at most every 10 s
+ODR_HZ: Final = 760
+SCALE_RAD_S: Final = 70e-3 * math.pi / 180.0     # 2000 dps: 70 mdps per digit
+POLL_US: Final = 715                              # PX4: 1/760 s - 600 us
+BOOT_WAIT_US: Final = 10_000
+RESET_RETRY_US: Final = 100_000
+DRDY_TIMEOUT_US: Final = 3 * 1_000_000 // ODR_HZ  # three sample periods without an edge
+BAD_TRANSFERS_RESET: Final = 10
+STUCK_SAMPLES: Final = 50
+REPORT_INTERVAL_US: Final = 10_000_000            # repeat a dmesg line at most every 10 s
 
 STATE_RESET, STATE_WAIT_FOR_RESET, STATE_CONFIGURE, STATE_READ = range(4)
 
@@ -84,7 +90,7 @@ def sensor_to_board(rotation: int | str | Sequence[Sequence[float]] | None,
 
 
 #: Three little-endian int16 from an offset: the X/Y/Z output block in one C call.
-_XYZ_LE = struct.Struct("<3h").unpack_from
+_XYZ_LE: Final = struct.Struct("<3h").unpack_from
 
 
 def _s16(lo: int, hi: int) -> int:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Final
 
 from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
@@ -43,35 +43,45 @@ __all__ = [
 ]
 
 #: PX4 drv_sensor.h device types.
-DRV_ACC_DEVTYPE_LSM303D = 0x11
-DRV_MAG_DEVTYPE_LSM303D = 0x02
+DRV_ACC_DEVTYPE_LSM303D: Final = 0x11
+DRV_MAG_DEVTYPE_LSM303D: Final = 0x02
 #: Legacy PX4 device number of the LSM303D on SPI1 (reference sheet 7.3).
-SPI_DEVICE_ACCEL_MAG = 2
+SPI_DEVICE_ACCEL_MAG: Final = 2
 
-WHO_AM_I, WHO_AM_I_VALUE = 0x0F, 0x49
-TEMP_OUT_L = 0x05
-CTRL0, CTRL1, CTRL2, CTRL5, CTRL6, CTRL7 = 0x1F, 0x20, 0x21, 0x24, 0x25, 0x26
-OUT_X_L_A = 0x28
-FIFO_CTRL, FIFO_SRC = 0x2E, 0x2F
-DIR_READ, ADDR_INCREMENT = 0x80, 0x40
-FIFO_SRC_OVRN, FIFO_SRC_EMPTY, FIFO_SRC_FSS = 0x40, 0x20, 0x1F
-STATUS_M_ZYXMDA = 0x08
+WHO_AM_I: Final = 0x0F
+WHO_AM_I_VALUE: Final = 0x49
+TEMP_OUT_L: Final = 0x05
+CTRL0: Final = 0x1F
+CTRL1: Final = 0x20
+CTRL2: Final = 0x21
+CTRL5: Final = 0x24
+CTRL6: Final = 0x25
+CTRL7: Final = 0x26
+OUT_X_L_A: Final = 0x28
+FIFO_CTRL: Final = 0x2E
+FIFO_SRC: Final = 0x2F
+DIR_READ: Final = 0x80
+ADDR_INCREMENT: Final = 0x40
+FIFO_SRC_OVRN: Final = 0x40
+FIFO_SRC_EMPTY: Final = 0x20
+FIFO_SRC_FSS: Final = 0x1F
+STATUS_M_ZYXMDA: Final = 0x08
 
-ACCEL_ODR_HZ = 1600
-ACCEL_INTERVAL_US = 2500
-SAMPLES_PER_CYCLE = ACCEL_ODR_HZ * ACCEL_INTERVAL_US // 1_000_000   # 4 -> FIFO threshold
-MAG_INTERVAL_US = 20_000
-CHECK_INTERVAL_US = 100_000
-ACCEL_SCALE_M_S2 = 0.732e-3 * 9.80665       # +-16 g: 0.732 mg/LSB
-MAG_SCALE_GAUSS = 0.479e-3                  # +-12 gauss: 0.479 mgauss/LSB
-BOOT_WAIT_US = 150_000
-RESET_RETRY_US = 100_000
-BAD_TRANSFERS_RESET = 10
-STUCK_SAMPLES = 50
-REPORT_INTERVAL_US = 10_000_000
+ACCEL_ODR_HZ: Final = 1600
+ACCEL_INTERVAL_US: Final = 2500
+SAMPLES_PER_CYCLE: Final = ACCEL_ODR_HZ * ACCEL_INTERVAL_US // 1_000_000   # 4 -> FIFO threshold
+MAG_INTERVAL_US: Final = 20_000
+CHECK_INTERVAL_US: Final = 100_000
+ACCEL_SCALE_M_S2: Final = 0.732e-3 * 9.80665       # +-16 g: 0.732 mg/LSB
+MAG_SCALE_GAUSS: Final = 0.479e-3                  # +-12 gauss: 0.479 mgauss/LSB
+BOOT_WAIT_US: Final = 150_000
+RESET_RETRY_US: Final = 100_000
+BAD_TRANSFERS_RESET: Final = 10
+STUCK_SAMPLES: Final = 50
+REPORT_INTERVAL_US: Final = 10_000_000
 
 #: (register, set bits, clear bits): PX4 modern's configuration (sheet 3.7).
-CONFIG: tuple[tuple[int, int, int], ...] = (
+CONFIG: Final[tuple[tuple[int, int, int], ...]] = (
     (CTRL0, 0x40, 0x98),
     (CTRL1, 0xAC, 0x50),
     (CTRL2, 0x20, 0xDC),

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import struct
 from operator import ne
-from typing import Any
+from typing import Any, Final
 
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
 from firmware.drivers.imu import rotation_matrix
@@ -41,22 +41,33 @@ from firmware.platform.perf import PC_COUNT
 
 __all__ = ["DRV_IMU_DEVTYPE_MPU6000", "PRODUCT_IDS", "Mpu6000Driver"]
 
-DRV_IMU_DEVTYPE_MPU6000 = 0x21
-WHO_AM_I_VALUE = 0x68
+DRV_IMU_DEVTYPE_MPU6000: Final = 0x21
+WHO_AM_I_VALUE: Final = 0x68
 #: PRODUCT_ID codes the legacy PX4 driver accepts (ES and production, rev C4..D10).
-PRODUCT_IDS = frozenset({0x14, 0x15, 0x16, 0x17, 0x18,
+PRODUCT_IDS: Final = frozenset({0x14, 0x15, 0x16, 0x17, 0x18,
                          0x54, 0x55, 0x56, 0x57, 0x58, 0x59, 0x5A})
-REV_C_IDS = frozenset({0x14, 0x15, 0x54, 0x55})
+REV_C_IDS: Final = frozenset({0x14, 0x15, 0x54, 0x55})
 
 # Registers.
-PRODUCT_ID, SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG = 0x0C, 0x19, 0x1A, 0x1B, 0x1C
-FIFO_EN, INT_PIN_CFG, INT_ENABLE, TEMP_OUT_H = 0x23, 0x37, 0x38, 0x41
-SIGNAL_PATH_RESET, USER_CTRL, PWR_MGMT_1, FIFO_COUNTH, FIFO_R_W, WHO_AM_I = (
-    0x68, 0x6A, 0x6B, 0x72, 0x74, 0x75)
-DIR_READ = 0x80
+PRODUCT_ID: Final = 0x0C
+SMPLRT_DIV: Final = 0x19
+CONFIG: Final = 0x1A
+GYRO_CONFIG: Final = 0x1B
+ACCEL_CONFIG: Final = 0x1C
+FIFO_EN: Final = 0x23
+INT_PIN_CFG: Final = 0x37
+INT_ENABLE: Final = 0x38
+TEMP_OUT_H: Final = 0x41
+SIGNAL_PATH_RESET: Final = 0x68
+USER_CTRL: Final = 0x6A
+PWR_MGMT_1: Final = 0x6B
+FIFO_COUNTH: Final = 0x72
+FIFO_R_W: Final = 0x74
+WHO_AM_I: Final = 0x75
+DIR_READ: Final = 0x80
 
 #: (register, bits to set, bits to clear): what configure() writes and the check re-reads.
-REGISTER_CONFIG: tuple[tuple[int, int, int], ...] = (
+REGISTER_CONFIG: Final[tuple[tuple[int, int, int], ...]] = (
     (SMPLRT_DIV, 0x00, 0xFF),    # 8 kHz / (1 + 0)
     (CONFIG, 0x00, 0x07),        # DLPF_CFG 0: 256 Hz gyro, 8 kHz
     (GYRO_CONFIG, 0x18, 0xE0),   # FS_SEL 3, +-2000 deg/s, self-test off
@@ -68,20 +79,23 @@ REGISTER_CONFIG: tuple[tuple[int, int, int], ...] = (
     (PWR_MGMT_1, 0x01, 0x40),    # CLKSEL PLL X gyro, SLEEP off
 )
 
-SAMPLE_RATE_HZ = 8000
-FIFO_SIZE = 1024
-RECORD_BYTES = 12
-MAX_RECORDS = FIFO_SIZE // RECORD_BYTES
-ACCEL_SCALE = 9.80665 / 2048.0
-GYRO_SCALE = math.radians(2000.0 / 32768.0)
-REG_CLOCK_HZ = 1_000_000
-DATA_CLOCK_HZ = 20_000_000
-REGISTER_CHECK_US = 10_000
-TEMPERATURE_US = 1_000_000
-STUCK_CYCLES = 100
-NO_ANSWER_RESET = 3
+SAMPLE_RATE_HZ: Final = 8000
+FIFO_SIZE: Final = 1024
+RECORD_BYTES: Final = 12
+MAX_RECORDS: Final = FIFO_SIZE // RECORD_BYTES
+ACCEL_SCALE: Final = 9.80665 / 2048.0
+GYRO_SCALE: Final = math.radians(2000.0 / 32768.0)
+REG_CLOCK_HZ: Final = 1_000_000
+DATA_CLOCK_HZ: Final = 20_000_000
+REGISTER_CHECK_US: Final = 10_000
+TEMPERATURE_US: Final = 1_000_000
+STUCK_CYCLES: Final = 100
+NO_ANSWER_RESET: Final = 3
 
-RESET, WAIT_FOR_RESET, CONFIGURE, FIFO_READ = "reset", "wait_for_reset", "configure", "fifo_read"
+RESET: Final = "reset"
+WAIT_FOR_RESET: Final = "wait_for_reset"
+CONFIGURE: Final = "configure"
+FIFO_READ: Final = "fifo_read"
 
 
 class Mpu6000Driver(SensorDriver):

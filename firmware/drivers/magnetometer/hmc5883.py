@@ -21,7 +21,7 @@ stop the driver (PX4 also only reports it).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Final
 
 from board.i2c import I2cHandle
 from firmware.drivers.device import BUS_TYPE_I2C, DeviceId, SensorDriver
@@ -30,25 +30,31 @@ from firmware.platform.perf import PC_COUNT
 
 __all__ = ["DRV_MAG_DEVTYPE_HMC5883", "GAIN_LSB_PER_GA", "Hmc5883Driver"]
 
-DRV_MAG_DEVTYPE_HMC5883 = 0x01
-I2C_ADDRESS = 0x1E
+DRV_MAG_DEVTYPE_HMC5883: Final = 0x01
+I2C_ADDRESS: Final = 0x1E
 
-REG_CRA, REG_CRB, REG_MR, REG_DATA, REG_SR, REG_ID_A = 0x00, 0x01, 0x02, 0x03, 0x09, 0x0A
-ID = b"H43"
-GAIN_LSB_PER_GA = (1370, 1090, 820, 660, 440, 390, 330, 230)
+REG_CRA: Final = 0x00
+REG_CRB: Final = 0x01
+REG_MR: Final = 0x02
+REG_DATA: Final = 0x03
+REG_SR: Final = 0x09
+REG_ID_A: Final = 0x0A
+ID: Final = b"H43"
+GAIN_LSB_PER_GA: Final[tuple[int, ...]] = (1370, 1090, 820, 660, 440, 390, 330, 230)
 
-CRA_NORMAL = 0x10            # MA = 1 sample, DO = 15 Hz, MS = normal
-CRA_POS_BIAS, CRA_NEG_BIAS = 0x01, 0x02
-CRB_RUN = 0x40               # +-1.9 Ga, 820 LSB/Ga (PX4's choice)
-CRB_SELF_TEST = 0x60         # +-2.5 Ga, 660 LSB/Ga
-MR_SINGLE = 0x01
-MEASURE_INTERVAL_US = 6666   # 150 Hz
-RETRY_US = 100_000
-PROBE_RETRIES = 10
-SELF_TEST_SAMPLES = 4
+CRA_NORMAL: Final = 0x10            # MA = 1 sample, DO = 15 Hz, MS = normal
+CRA_POS_BIAS: Final = 0x01
+CRA_NEG_BIAS: Final = 0x02
+CRB_RUN: Final = 0x40               # +-1.9 Ga, 820 LSB/Ga (PX4's choice)
+CRB_SELF_TEST: Final = 0x60         # +-2.5 Ga, 660 LSB/Ga
+MR_SINGLE: Final = 0x01
+MEASURE_INTERVAL_US: Final = 6666   # 150 Hz
+RETRY_US: Final = 100_000
+PROBE_RETRIES: Final = 10
+SELF_TEST_SAMPLES: Final = 4
 SELF_TEST_LIMITS_GA = (243 / 390, 575 / 390)
-STUCK_SAMPLES = 20
-NAK_WARN = 10
+STUCK_SAMPLES: Final = 20
+NAK_WARN: Final = 10
 
 
 class Hmc5883Driver(SensorDriver):

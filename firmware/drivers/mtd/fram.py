@@ -16,20 +16,29 @@ Misuse (an unknown partition name) raises, since that is a bug in the caller.
 
 from __future__ import annotations
 
+from typing import Final
+
 from board.spi import SpiHandle
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT, PC_ELAPSED
 
 __all__ = ["DENSITY_BYTES", "FramMtd", "FramPartition"]
 
-OP_WREN, OP_RDSR, OP_WRSR, OP_READ, OP_WRITE, OP_RDID = 0x06, 0x05, 0x01, 0x03, 0x02, 0x9F
-SR_WEL, SR_BP_MASK, SR_RESERVED = 0x02, 0x0C, 0x71
-RDID_FILLER = 0xA5           # what NuttX clocks out while reading the ID
-MANUFACTURER_CYPRESS = 0xC2
+OP_WREN: Final = 0x06
+OP_RDSR: Final = 0x05
+OP_WRSR: Final = 0x01
+OP_READ: Final = 0x03
+OP_WRITE: Final = 0x02
+OP_RDID: Final = 0x9F
+SR_WEL: Final = 0x02
+SR_BP_MASK: Final = 0x0C
+SR_RESERVED: Final = 0x71
+RDID_FILLER: Final = 0xA5           # what NuttX clocks out while reading the ID
+MANUFACTURER_CYPRESS: Final = 0xC2
 #: RDID family/density byte -> capacity (FM25V01, V02, V05, V10).
-DENSITY_BYTES = {0x21: 16 * 1024, 0x22: 32 * 1024, 0x23: 64 * 1024, 0x24: 128 * 1024}
-WRITE_CHUNK = 32             # NuttX's emulated block size (RAMTRON_EMULATE_PAGE_SHIFT = 5)
-CLOCK_HZ = 40_000_000
+DENSITY_BYTES: Final = {0x21: 16 * 1024, 0x22: 32 * 1024, 0x23: 64 * 1024, 0x24: 128 * 1024}
+WRITE_CHUNK: Final = 32             # NuttX's emulated block size (RAMTRON_EMULATE_PAGE_SHIFT = 5)
+CLOCK_HZ: Final = 40_000_000
 
 
 class FramPartition:

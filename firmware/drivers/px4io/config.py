@@ -7,7 +7,7 @@ the CONFIG sanity limits) can be read and tested as plain data.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from firmware.drivers.px4io.params import CBRK_IO_SAFETY_KEY, RC_DEFAULTS, rc_param_defaults
 from ioproc.mixer import encode_mixer_upload, filter_mixer_file
@@ -31,21 +31,21 @@ __all__ = ["ALARM_FIELDS", "ARMING_FIELDS", "CBRK_IO_SAFETY_KEY", "CONFIG_READS"
 ParamGetter = Callable[[str, float], float]
 
 #: CONFIG registers read after the protocol version, in the E14 order (§1.8 "Init sequence").
-CONFIG_READS: tuple[tuple[str, int], ...] = (
+CONFIG_READS: Final[tuple[tuple[str, int], ...]] = (
     ("hardware", Config.HARDWARE_VERSION), ("actuators", Config.ACTUATOR_COUNT),
     ("controls", Config.CONTROL_COUNT), ("relays", Config.RELAY_COUNT),
     ("max_transfer", Config.MAX_TRANSFER), ("rc_inputs", Config.RC_INPUT_COUNT),
     ("bootloader", Config.BOOTLOADER_VERSION))
 
-FEATURES = int(Features.ADC_RSSI)  #: analog RSSI on PA5, the IO's reset value, made explicit
-DEFAULT_RATE_HZ = 50
+FEATURES: Final = int(Features.ADC_RSSI)  #: analog RSSI on PA5, the IO's reset value, made explicit
+DEFAULT_RATE_HZ: Final = 50
 
-STATUS_FIELDS = ("ARM_SYNC", "FAILSAFE", "FMU_INITIALIZED", "FMU_OK", "INIT_OK",
+STATUS_FIELDS: Final[tuple[str, ...]] = ("ARM_SYNC", "FAILSAFE", "FMU_INITIALIZED", "FMU_OK", "INIT_OK",
                  "OUTPUTS_ARMED", "OVERRIDE", "RAW_PWM", "RC_OK", "RC_DSM", "RC_PPM", "RC_SBUS",
                  "RC_ST24", "RC_SUMD", "SAFETY_OFF")
-ALARM_FIELDS = ("FMU_LOST", "PWM_ERROR", "RC_LOST", "SERVO_CURRENT", "TEMPERATURE",
+ALARM_FIELDS: Final[tuple[str, ...]] = ("FMU_LOST", "PWM_ERROR", "RC_LOST", "SERVO_CURRENT", "TEMPERATURE",
                 "VSERVO_FAULT")
-ARMING_FIELDS = ("FAILSAFE_CUSTOM", "FMU_ARMED", "FORCE_FAILSAFE", "IO_ARM_OK", "LOCKDOWN",
+ARMING_FIELDS: Final[tuple[str, ...]] = ("FAILSAFE_CUSTOM", "FMU_ARMED", "FORCE_FAILSAFE", "IO_ARM_OK", "LOCKDOWN",
                  "TERMINATION_FAILSAFE")
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from types import SimpleNamespace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from board.uart import Uart, UartConfig
 from firmware.drivers.px4io import config as cfg
@@ -47,34 +47,34 @@ if TYPE_CHECKING:
 
 __all__ = ["IO_BAUD", "ORB_CHECK_INTERVAL_US", "POLL_INTERVAL_US", "Px4ioDriver"]
 
-IO_BAUD = 1_500_000
-POLL_INTERVAL_US = 20_000  #: status / RC / servo poll (E14 IO_POLL_INTERVAL)
-ORB_CHECK_INTERVAL_US = 200_000  #: arming and parameter check (E14 ORB_CHECK_INTERVAL)
-GROUP_INTERVAL_US = 33_000  #: actuator_controls_1..3 subscription interval (E14)
+IO_BAUD: Final = 1_500_000
+POLL_INTERVAL_US: Final = 20_000  #: status / RC / servo poll (E14 IO_POLL_INTERVAL)
+ORB_CHECK_INTERVAL_US: Final = 200_000  #: arming and parameter check (E14 ORB_CHECK_INTERVAL)
+GROUP_INTERVAL_US: Final = 33_000  #: actuator_controls_1..3 subscription interval (E14)
 #: px4io task priority: SCHED_PRIORITY_ACTUATOR_OUTPUTS = max - 15
-TASK_PRIORITY = -15
-PROTOCOL_RETRY_US = 700_000
-PROTOCOL_RETRY_GAP_US = 2_000
+TASK_PRIORITY: Final = -15
+PROTOCOL_RETRY_US: Final = 700_000
+PROTOCOL_RETRY_GAP_US: Final = 2_000
 #: in-air restart (PX4 px4io): wait this long for the commander's first actuator_armed ...
-INAIR_WAIT_COMMANDER_US = 3_000_000
+INAIR_WAIT_COMMANDER_US: Final = 3_000_000
 #: ... then ask it to arm (again at every arming check) for this long before giving up
-INAIR_REARM_US = 2_000_000
-MIXER_CHUNK_TRIES = 30  #: mixer_send retries per chunk, 333 us apart (§2.11)
-MIXER_RETRY_GAP_US = 333
+INAIR_REARM_US: Final = 2_000_000
+MIXER_CHUNK_TRIES: Final = 30  #: mixer_send retries per chunk, 333 us apart (§2.11)
+MIXER_RETRY_GAP_US: Final = 333
 
 # Plain-int copies of the bit enums: IntFlag arithmetic costs ~1 us a go in the 50 Hz path.
-_SF = SimpleNamespace(**{str(m.name): int(m) for m in StatusFlags})
-_A = SimpleNamespace(**{str(m.name): int(m) for m in ArmingA})
-_AL = SimpleNamespace(**{str(m.name): int(m) for m in Alarms})
-_RC_OK = int(RawRcFlags.RC_OK)
-_RC_FAILSAFE = int(RawRcFlags.FAILSAFE)
+_SF: Final = SimpleNamespace(**{str(m.name): int(m) for m in StatusFlags})
+_A: Final = SimpleNamespace(**{str(m.name): int(m) for m in ArmingA})
+_AL: Final = SimpleNamespace(**{str(m.name): int(m) for m in Alarms})
+_RC_OK: Final = int(RawRcFlags.RC_OK)
+_RC_FAILSAFE: Final = int(RawRcFlags.FAILSAFE)
 #: px4io_status boolean fields and the bit each one shows
-_STATUS_BITS = tuple((f"status_{n.lower()}", "status_flags", int(StatusFlags[n]))
+_STATUS_BITS: Final = tuple((f"status_{n.lower()}", "status_flags", int(StatusFlags[n]))
                      for n in cfg.STATUS_FIELDS) + \
     tuple((f"alarm_{n.lower()}", "alarms", int(Alarms[n])) for n in cfg.ALARM_FIELDS) + \
     tuple((f"arming_{n.lower()}", "arming", int(ArmingA[n])) for n in cfg.ARMING_FIELDS)
 #: SETUP_ARMING bits this driver owns (the IO sets FAILSAFE_CUSTOM and ALWAYS_PWM_ENABLE).
-_ARMING_OWNED = (_A.FMU_ARMED | _A.IO_ARM_OK | _A.LOCKDOWN | _A.FORCE_FAILSAFE
+_ARMING_OWNED: Final = (_A.FMU_ARMED | _A.IO_ARM_OK | _A.LOCKDOWN | _A.FORCE_FAILSAFE
                  | _A.OVERRIDE_IMMEDIATE
                  | _A.MANUAL_OVERRIDE_OK | _A.INAIR_RESTART_OK | _A.TERMINATION_FAILSAFE)
 _ALARM_TEXT = ((_AL.FMU_LOST, "FMU lost (no controls for 500 ms)"),
@@ -83,9 +83,9 @@ _ALARM_TEXT = ((_AL.FMU_LOST, "FMU lost (no controls for 500 ms)"),
 #: input_rc.input_source from STATUS_FLAGS, first match wins (io-and-rc.md §9.1)
 _RC_SOURCES = ((_SF.RC_PPM, 2), (_SF.RC_DSM, 3), (_SF.RC_SBUS, 4), (_SF.RC_ST24, 5),
                (_SF.RC_SUMD, 11))
-_VEHICLE_CMD_ARM = 400
-_FORCE_ARM_MAGIC = 21196  #: vehicle_command param2: arm without the preflight checks
-_VEHICLE_TYPE_FIXED_WING = 2
+_VEHICLE_CMD_ARM: Final = 400
+_FORCE_ARM_MAGIC: Final = 21196  #: vehicle_command param2: arm without the preflight checks
+_VEHICLE_TYPE_FIXED_WING: Final = 2
 
 
 class Px4ioDriver:

@@ -15,7 +15,7 @@ counters keep PX4's names (``io_txns``, ``io_retries``, ...).
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from board.kernel import NS_PER_US, PRIO_THREAD, KernelError
 from board.uart import Uart
@@ -44,13 +44,13 @@ __all__ = ["IO_LOST_CALLS", "IoLink", "IoThread", "ReplyWait", "Txn"]
 
 #: Consecutive calls that got no usable reply (after all their attempts) before the driver
 #: reports the IO as lost. [model] E14 has no such report; 10 calls are 0.3 s of silence.
-IO_LOST_CALLS = 10
+IO_LOST_CALLS: Final = 10
 
 #: What a transaction generator yields and gets back.
 Txn = Generator[Any, Any, Any]
 
-_IDLE = "idle"
-_TIMEOUT = "timeout"
+_IDLE: Final = "idle"
+_TIMEOUT: Final = "timeout"
 
 
 class ReplyWait:

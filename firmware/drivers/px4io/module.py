@@ -8,7 +8,7 @@ The UART comes from the board through the system (``system.hw.uarts``, or ``syst
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Final
 
 from firmware.drivers.px4io.driver import Px4ioDriver
 from firmware.drivers.px4io.params import PARAMS
@@ -22,10 +22,10 @@ if TYPE_CHECKING:
 
 __all__ = ["Px4ioModule"]
 
-DEFAULT_DEVICE = "io_link"
+DEFAULT_DEVICE: Final = "io_link"
 #: E14's rc scripts ran ``px4io limit 400`` for multicopters; this tree's rcS does not, so the
 #: driver starts with that limit.
-DEFAULT_UPDATE_RATE_HZ = 400
+DEFAULT_UPDATE_RATE_HZ: Final = 400
 
 
 class Px4ioModule(ModuleBase):

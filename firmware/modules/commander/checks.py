@@ -12,7 +12,7 @@ cannot make stale data look fresh.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 from firmware.modules.commander import modes
 from firmware.modules.commander.params import CBRK_IO_SAFETY_KEY
@@ -22,9 +22,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Failure", "VehicleData", "preflight_failures"]
 
-POS_TIMEOUT_US = 1_000_000      # an estimate older than this is not valid
-GPS_TIMEOUT_US = 1_000_000
-TELEMETRY_INSTANCES = 4
+POS_TIMEOUT_US: Final = 1_000_000      # an estimate older than this is not valid
+GPS_TIMEOUT_US: Final = 1_000_000
+TELEMETRY_INSTANCES: Final = 4
 
 
 class Failure(NamedTuple):

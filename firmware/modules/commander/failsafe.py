@@ -16,6 +16,8 @@ The most severe active reaction wins (FAILSAFE_ACTION_* are ordered by severity)
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.modules.commander import modes
 
 __all__ = ["ACTION_NAMES_LOWER", "A_DESCEND", "A_DISARM", "A_HOLD", "A_LAND", "A_NONE", "A_RTL", "A_TERMINATE",
@@ -23,10 +25,10 @@ __all__ = ["ACTION_NAMES_LOWER", "A_DESCEND", "A_DISARM", "A_HOLD", "A_LAND", "A
 
 A_NONE, A_HOLD, A_RTL, A_LAND, A_DESCEND, A_DISARM, A_TERMINATE = range(7)
 #: names of the actions, for messages ("Failsafe: manual control lost, return")
-ACTION_NAMES_LOWER = ("none", "hold", "return", "land", "descend", "disarm", "terminate")
+ACTION_NAMES_LOWER: Final[tuple[str, ...]] = ("none", "hold", "return", "land", "descend", "disarm", "terminate")
 
 #: NAV_RCL_ACT / NAV_DLL_ACT value -> action
-_PARAM_ACTION = {0: A_NONE, 1: A_HOLD, 2: A_RTL, 3: A_LAND, 4: A_RTL, 5: A_TERMINATE,
+_PARAM_ACTION: Final = {0: A_NONE, 1: A_HOLD, 2: A_RTL, 3: A_LAND, 4: A_RTL, 5: A_TERMINATE,
                  6: A_DISARM}
 
 

@@ -19,7 +19,7 @@ checks.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from firmware.platform.params import ParamDef
 
@@ -29,11 +29,12 @@ if TYPE_CHECKING:
 __all__ = ["CBRK_FLIGHTTERM_KEY", "FAILURE_DETECTOR_PARAMS", "FailureDetector", "FAILURE_PITCH",
            "FAILURE_ROLL"]
 
-_F = "Failure Detector"
+_F: Final = "Failure Detector"
 #: CBRK_FLIGHTTERM's magic: flight termination disabled
-CBRK_FLIGHTTERM_KEY = 121212
+CBRK_FLIGHTTERM_KEY: Final = 121212
 #: vehicle_status.failure_detector_status bits (PX4's FAILURE_ROLL, FAILURE_PITCH)
-FAILURE_ROLL, FAILURE_PITCH = 1, 2
+FAILURE_ROLL: Final = 1
+FAILURE_PITCH: Final = 2
 
 FAILURE_DETECTOR_PARAMS = (
     ParamDef("FD_FAIL_R", "INT32", 60, min=0, max=180, unit="deg", group=_F,

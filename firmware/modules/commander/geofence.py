@@ -21,7 +21,7 @@ breach from the braking distance; here the fence trips at the boundary), GF_COUN
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from firmware.modules.commander import failsafe as fs
 from firmware.modules.navigator.geo import distance_m
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = ["GEOFENCE_PARAMS", "GF_ACTIONS", "Geofence"]
 
-_G = "Geofence"
+_G: Final = "Geofence"
 GEOFENCE_PARAMS = (
     ParamDef("GF_ACTION", "INT32", 2, min=0, max=5, group=_G,
              short="Geofence violation action",
@@ -50,7 +50,7 @@ GEOFENCE_PARAMS = (
 )
 
 #: GF_ACTION -> failsafe action (1 "warning" reports without a reaction)
-GF_ACTIONS = {0: fs.A_NONE, 1: fs.A_NONE, 2: fs.A_HOLD, 3: fs.A_RTL, 4: fs.A_TERMINATE,
+GF_ACTIONS: Final = {0: fs.A_NONE, 1: fs.A_NONE, 2: fs.A_HOLD, 3: fs.A_RTL, 4: fs.A_TERMINATE,
               5: fs.A_LAND}
 
 

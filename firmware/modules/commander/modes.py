@@ -7,17 +7,30 @@ custom main/sub modes, COM_FLTMODEn values, MAV_CMD ids).
 
 from __future__ import annotations
 
+from typing import Final
+
 __all__ = [
     "FLTMODE_TO_NAV", "MODE_NAMES", "NAV_NAMES", "NO_ARMING", "REQUIREMENTS",
     "control_flags", "custom_to_nav", "nav_to_custom",
 ]
 
 # vehicle_status.NAVIGATION_STATE_*
-MANUAL, ALTCTL, POSCTL, AUTO_MISSION, AUTO_LOITER, AUTO_RTL = 0, 1, 2, 3, 4, 5
-ACRO, DESCEND, TERMINATION, OFFBOARD, STAB = 10, 12, 13, 14, 15
-AUTO_TAKEOFF, AUTO_LAND, AUTO_PRECLAND = 17, 18, 20
+MANUAL: Final = 0
+ALTCTL: Final = 1
+POSCTL: Final = 2
+AUTO_MISSION: Final = 3
+AUTO_LOITER: Final = 4
+AUTO_RTL: Final = 5
+ACRO: Final = 10
+DESCEND: Final = 12
+TERMINATION: Final = 13
+OFFBOARD: Final = 14
+STAB: Final = 15
+AUTO_TAKEOFF: Final = 17
+AUTO_LAND: Final = 18
+AUTO_PRECLAND: Final = 20
 
-NAV_NAMES: dict[int, str] = {
+NAV_NAMES: Final[dict[int, str]] = {
     MANUAL: "Manual", ALTCTL: "Altitude", POSCTL: "Position", AUTO_MISSION: "Mission",
     AUTO_LOITER: "Hold", AUTO_RTL: "Return", ACRO: "Acro", DESCEND: "Descend",
     TERMINATION: "Termination", OFFBOARD: "Offboard", STAB: "Stabilized",
@@ -25,30 +38,40 @@ NAV_NAMES: dict[int, str] = {
 }
 
 # PX4 custom modes (MAVLink HEARTBEAT custom_mode / DO_SET_MODE param2, param3)
-MAIN_MANUAL, MAIN_ALTCTL, MAIN_POSCTL, MAIN_AUTO, MAIN_ACRO, MAIN_OFFBOARD, MAIN_STAB = \
-    1, 2, 3, 4, 5, 6, 7
-SUB_READY, SUB_TAKEOFF, SUB_LOITER, SUB_MISSION, SUB_RTL, SUB_LAND = 1, 2, 3, 4, 5, 6
-SUB_PRECLAND = 9
+MAIN_MANUAL: Final = 1
+MAIN_ALTCTL: Final = 2
+MAIN_POSCTL: Final = 3
+MAIN_AUTO: Final = 4
+MAIN_ACRO: Final = 5
+MAIN_OFFBOARD: Final = 6
+MAIN_STAB: Final = 7
+SUB_READY: Final = 1
+SUB_TAKEOFF: Final = 2
+SUB_LOITER: Final = 3
+SUB_MISSION: Final = 4
+SUB_RTL: Final = 5
+SUB_LAND: Final = 6
+SUB_PRECLAND: Final = 9
 
-_CUSTOM: dict[tuple[int, int], int] = {
+_CUSTOM: Final[dict[tuple[int, int], int]] = {
     (MAIN_MANUAL, 0): MANUAL, (MAIN_ALTCTL, 0): ALTCTL, (MAIN_POSCTL, 0): POSCTL,
     (MAIN_ACRO, 0): ACRO, (MAIN_OFFBOARD, 0): OFFBOARD, (MAIN_STAB, 0): STAB,
     (MAIN_AUTO, SUB_TAKEOFF): AUTO_TAKEOFF, (MAIN_AUTO, SUB_LOITER): AUTO_LOITER,
     (MAIN_AUTO, SUB_MISSION): AUTO_MISSION, (MAIN_AUTO, SUB_RTL): AUTO_RTL,
     (MAIN_AUTO, SUB_LAND): AUTO_LAND, (MAIN_AUTO, SUB_PRECLAND): AUTO_PRECLAND,
 }
-_NAV_TO_CUSTOM = {nav: key for key, nav in _CUSTOM.items()}
+_NAV_TO_CUSTOM: Final = {nav: key for key, nav in _CUSTOM.items()}
 _NAV_TO_CUSTOM[DESCEND] = (MAIN_AUTO, SUB_LAND)
 _NAV_TO_CUSTOM[TERMINATION] = (MAIN_MANUAL, 0)
 
 #: COM_FLTMODEn value -> navigation state (-1 unassigned)
-FLTMODE_TO_NAV: dict[int, int] = {
+FLTMODE_TO_NAV: Final[dict[int, int]] = {
     0: MANUAL, 1: ALTCTL, 2: POSCTL, 3: AUTO_MISSION, 4: AUTO_LOITER, 5: AUTO_RTL, 6: ACRO,
     7: OFFBOARD, 8: STAB, 10: AUTO_TAKEOFF, 11: AUTO_LAND, 13: AUTO_PRECLAND,
 }
 
 #: ``commander mode <name>`` (PX4's names first, then friendly aliases)
-MODE_NAMES: dict[str, int] = {
+MODE_NAMES: Final[dict[str, int]] = {
     "manual": MANUAL, "altctl": ALTCTL, "posctl": POSCTL, "acro": ACRO, "offboard": OFFBOARD,
     "stabilized": STAB, "auto:mission": AUTO_MISSION, "auto:loiter": AUTO_LOITER,
     "auto:rtl": AUTO_RTL, "auto:takeoff": AUTO_TAKEOFF, "auto:land": AUTO_LAND,
@@ -61,7 +84,7 @@ MODE_NAMES: dict[str, int] = {
 # What a mode needs to run. "manual": stick input; "alt": a valid altitude estimate;
 # "lpos": local horizontal position; "gpos": global position; "home"; "mission"; "never":
 # not implemented in this stack (offboard, precision landing).
-REQUIREMENTS: dict[int, frozenset[str]] = {
+REQUIREMENTS: Final[dict[int, frozenset[str]]] = {
     MANUAL: frozenset({"manual"}), STAB: frozenset({"manual"}), ACRO: frozenset({"manual"}),
     ALTCTL: frozenset({"manual", "alt"}), POSCTL: frozenset({"manual", "alt", "lpos"}),
     AUTO_MISSION: frozenset({"alt", "lpos", "gpos", "mission"}),
@@ -74,11 +97,19 @@ REQUIREMENTS: dict[int, frozenset[str]] = {
 }
 
 #: modes from which arming is refused (PX4: the vehicle would not know what to do on the ground)
-NO_ARMING = frozenset({AUTO_RTL, AUTO_LAND, DESCEND, TERMINATION, AUTO_PRECLAND})
+NO_ARMING: Final = frozenset({AUTO_RTL, AUTO_LAND, DESCEND, TERMINATION, AUTO_PRECLAND})
 
-_RATES, _ATT, _ALT, _CLIMB, _POS, _VEL, _ACC = 1, 2, 4, 8, 16, 32, 64
-_MANUAL_F, _AUTO_F, _TERM_F = 128, 256, 512
-_FLAGS: dict[int, int] = {
+_RATES: Final = 1
+_ATT: Final = 2
+_ALT: Final = 4
+_CLIMB: Final = 8
+_POS: Final = 16
+_VEL: Final = 32
+_ACC: Final = 64
+_MANUAL_F: Final = 128
+_AUTO_F: Final = 256
+_TERM_F: Final = 512
+_FLAGS: Final[dict[int, int]] = {
     MANUAL: _MANUAL_F | _RATES | _ATT,      # a multicopter's manual mode is stabilized
     STAB: _MANUAL_F | _RATES | _ATT,
     ACRO: _MANUAL_F | _RATES,

@@ -2,19 +2,22 @@
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["CBRK_IO_SAFETY_KEY", "FORCE_ARM_MAGIC", "PARAMS"]
 
 #: CBRK_IO_SAFETY value that disables the safety switch check
-CBRK_IO_SAFETY_KEY = 22027
+CBRK_IO_SAFETY_KEY: Final = 22027
 #: vehicle_command param2 that forces arming/disarming past the checks
-FORCE_ARM_MAGIC = 21196
+FORCE_ARM_MAGIC: Final = 21196
 
-_C, _S = "Commander", "Failsafe"
-_ACT = {0: "Disabled", 1: "Hold mode", 2: "Return mode", 3: "Land mode", 5: "Terminate",
+_C: Final = "Commander"
+_S: Final = "Failsafe"
+_ACT: Final = {0: "Disabled", 1: "Hold mode", 2: "Return mode", 3: "Land mode", 5: "Terminate",
         6: "Disarm"}
-_FLTMODE = {-1: "Unassigned", 0: "Manual", 1: "Altitude", 2: "Position", 3: "Mission",
+_FLTMODE: Final = {-1: "Unassigned", 0: "Manual", 1: "Altitude", 2: "Position", 3: "Mission",
             4: "Hold", 5: "Return", 6: "Acro", 7: "Offboard", 8: "Stabilized", 10: "Takeoff",
             11: "Land", 13: "Precision Land"}
 
@@ -25,7 +28,7 @@ def _fltmode(n: int) -> ParamDef:
                     long="Flight mode selected when RC_MAP_FLTMODE is in this slot.")
 
 
-PARAMS: tuple[ParamDef, ...] = (
+PARAMS: Final[tuple[ParamDef, ...]] = (
     ParamDef("COM_ARM_WO_GPS", "INT32", 1, min=0, max=1, group=_C,
              short="Allow arming without GPS", values={0: "Require GPS", 1: "Allow"},
              long="With 0 a 3D GPS fix is required to arm in every mode; modes that need a "

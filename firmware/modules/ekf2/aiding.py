@@ -12,6 +12,8 @@ a GPS multipath) and arming should be refused (commander reads the ``pre_flt_fai
 
 from __future__ import annotations
 
+from typing import Final
+
 __all__ = [
     "INNOV_HGT",
     "INNOV_POS_NE",
@@ -23,14 +25,18 @@ __all__ = [
 ]
 
 #: estimator_status.innovation_check_flags bits (PX4 numbering)
-INNOV_VEL_NE, INNOV_VEL_D, INNOV_POS_NE, INNOV_HGT, INNOV_YAW = 1, 2, 4, 8, 128
+INNOV_VEL_NE: Final = 1
+INNOV_VEL_D: Final = 2
+INNOV_POS_NE: Final = 4
+INNOV_HGT: Final = 8
+INNOV_YAW: Final = 128
 
 #: pre-flight innovation limits (filtered) and the filter time constant
-PREFLT_HEADING_RAD = 0.5
-PREFLT_VEL_NE_M_S = 0.8
-PREFLT_VEL_D_M_S = 0.8
-PREFLT_HGT_M = 1.5
-PREFLT_TAU_S = 2.0
+PREFLT_HEADING_RAD: Final = 0.5
+PREFLT_VEL_NE_M_S: Final = 0.8
+PREFLT_VEL_D_M_S: Final = 0.8
+PREFLT_HGT_M: Final = 1.5
+PREFLT_TAU_S: Final = 2.0
 
 
 class AidSource:

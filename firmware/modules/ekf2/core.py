@@ -25,6 +25,7 @@ change slowly over the delay it gives the same result.
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 
@@ -32,13 +33,17 @@ from firmware.modules.ekf2.quat import Quat, dcm, q_from_rotvec, q_mul, q_norm, 
 
 __all__ = ["G_M_S2", "N_STATES", "Ekf", "NoiseParams"]
 
-N_STATES = 15
-G_M_S2 = 9.80665
-I_THETA, I_VEL, I_POS, I_BG, I_BA = 0, 3, 6, 9, 12
-HISTORY = 128                 # entries of the state history ring (0.5 s at 250 Hz)
+N_STATES: Final = 15
+G_M_S2: Final = 9.80665
+I_THETA: Final = 0
+I_VEL: Final = 3
+I_POS: Final = 6
+I_BG: Final = 9
+I_BA: Final = 12
+HISTORY: Final = 128                 # entries of the state history ring (0.5 s at 250 Hz)
 # flat indices of the entries of F that change per prediction: -R dt (theta/gyro bias and
 # v/accel bias blocks), -[dv x] (v/theta block), dt (p/v block)
-_F_IDX = np.array([r * 15 + c for r in range(3) for c in range(9, 12)]
+_F_IDX: Final = np.array([r * 15 + c for r in range(3) for c in range(9, 12)]
                   + [r * 15 + c for r in range(3, 6) for c in range(12, 15)]
                   + [3 * 15 + 1, 3 * 15 + 2, 4 * 15 + 0, 4 * 15 + 2, 5 * 15 + 0, 5 * 15 + 1]
                   + [6 * 15 + 3, 7 * 15 + 4, 8 * 15 + 5])

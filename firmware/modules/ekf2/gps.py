@@ -13,19 +13,27 @@ uses for its local frame) and back.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Final
 
 __all__ = ["EARTH_RADIUS_M", "GPS_CHECK_FAIL_BITS", "GpsChecks", "LocalProjection"]
 
-EARTH_RADIUS_M = 6371000.0
+EARTH_RADIUS_M: Final = 6371000.0
 
 #: estimator_status.gps_check_fail_flags bits (PX4 numbering)
-GPS_FAIL_FIX, GPS_FAIL_NSATS, GPS_FAIL_PDOP, GPS_FAIL_HACC, GPS_FAIL_VACC, GPS_FAIL_SACC = \
-    0, 1, 2, 3, 4, 5
-GPS_CHECK_FAIL_BITS = {GPS_FAIL_FIX: "fix", GPS_FAIL_NSATS: "nsats", GPS_FAIL_PDOP: "pdop",
+GPS_FAIL_FIX: Final = 0
+GPS_FAIL_NSATS: Final = 1
+GPS_FAIL_PDOP: Final = 2
+GPS_FAIL_HACC: Final = 3
+GPS_FAIL_VACC: Final = 4
+GPS_FAIL_SACC: Final = 5
+GPS_CHECK_FAIL_BITS: Final = {GPS_FAIL_FIX: "fix", GPS_FAIL_NSATS: "nsats", GPS_FAIL_PDOP: "pdop",
                        GPS_FAIL_HACC: "hacc", GPS_FAIL_VACC: "vacc", GPS_FAIL_SACC: "sacc"}
 #: EKF2_GPS_CHECK mask bits (PX4 numbering): which of the checks are enforced
-MASK_NSATS, MASK_PDOP, MASK_HACC, MASK_VACC, MASK_SACC = 1, 2, 4, 8, 16
+MASK_NSATS: Final = 1
+MASK_PDOP: Final = 2
+MASK_HACC: Final = 4
+MASK_VACC: Final = 8
+MASK_SACC: Final = 16
 
 
 class GpsChecks:

@@ -39,7 +39,7 @@ Resets (each counted in estimator_status.reset_count_* and logged):
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Final
 
 from firmware.modules.ekf2.aiding import (
     INNOV_HGT,
@@ -59,17 +59,17 @@ from firmware.platform.module import WorkItemModule
 
 __all__ = ["Ekf2Module"]
 
-_DEFAULTS = {d.name: d.default for d in PARAMS}
-ALIGN_US = 500_000
+_DEFAULTS: Final = {d.name: d.default for d in PARAMS}
+ALIGN_US: Final = 500_000
 #: the vehicle counts as still during alignment if no gyro sample exceeds this
-STILL_RATE_RAD_S = 0.03
-STILL_BIAS_SIGMA = 0.003
-FAKE_POS_INTERVAL_US = 200_000
-FAKE_POS_NOISE_M = 0.5
-STATUS_INTERVAL_US = 100_000
+STILL_RATE_RAD_S: Final = 0.03
+STILL_BIAS_SIGMA: Final = 0.003
+FAKE_POS_INTERVAL_US: Final = 200_000
+FAKE_POS_NOISE_M: Final = 0.5
+STATUS_INTERVAL_US: Final = 100_000
 #: no GPS fusion for this long: dead reckoning (flag); no baro for this long: height timeout
-DEAD_RECKONING_US = 1_000_000
-BARO_TIMEOUT_US = 1_000_000
+DEAD_RECKONING_US: Final = 1_000_000
+BARO_TIMEOUT_US: Final = 1_000_000
 
 
 class Ekf2Module(WorkItemModule):

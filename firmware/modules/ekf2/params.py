@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["PARAMS"]
 
-_G = "EKF2"
+_G: Final = "EKF2"
 
 
 def _f(name: str, default: float, unit: str, short: str, long: str = "", lo: float | None = None,
@@ -15,7 +17,7 @@ def _f(name: str, default: float, unit: str, short: str, long: str = "", lo: flo
                     long=long, decimals=decimals)
 
 
-PARAMS: tuple[ParamDef, ...] = (
+PARAMS: Final[tuple[ParamDef, ...]] = (
     ParamDef("EKF2_PREDICT_US", "INT32", 10000, min=1000, max=20000, unit="us", group=_G,
              short="EKF prediction period",
              long="Covariance prediction and measurement fusion run at this period; the "

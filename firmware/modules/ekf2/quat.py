@@ -8,6 +8,7 @@ call per operation would cost more than the arithmetic, hence tuples and unrolle
 from __future__ import annotations
 
 import math
+from typing import Final
 
 __all__ = [
     "Quat",
@@ -23,8 +24,8 @@ __all__ = [
 
 Quat = tuple[float, float, float, float]
 
-_PI = math.pi
-_TWO_PI = 2.0 * math.pi
+_PI: Final = math.pi
+_TWO_PI: Final = 2.0 * math.pi
 
 
 def wrap_pi(a: float) -> float:

@@ -17,14 +17,18 @@ Bit meanings follow PX4 so that tools reading PX4 logs read ours:
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
     from firmware.modules.ekf2.module import Ekf2Module
 
 __all__ = ["fill_estimator_status"]
 
-CS_TILT_ALIGN, CS_YAW_ALIGN, CS_GPS, CS_MAG_HDG, CS_BARO_HGT = 0, 1, 2, 4, 7
+CS_TILT_ALIGN: Final = 0
+CS_YAW_ALIGN: Final = 1
+CS_GPS: Final = 2
+CS_MAG_HDG: Final = 4
+CS_BARO_HGT: Final = 7
 
 
 def fill_estimator_status(mod: Ekf2Module, m: Any, t: int) -> None:

@@ -9,6 +9,7 @@ a module that adds a topic gets it logged without touching this file.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 __all__ = ["PROFILES", "LoggedTopic", "get_profile"]
 
@@ -29,7 +30,7 @@ def _t(*rows: tuple[str, float]) -> tuple[LoggedTopic, ...]:
 
 #: PX4-like default set: estimator and controller outputs at tens of Hz, raw sensors lower,
 #: events (commands, status changes) at every update.
-DEFAULT = _t(
+DEFAULT: Final = _t(
     ("actuator_armed", 0),
     ("actuator_controls_0", 50), ("actuator_controls_1", 20),
     ("actuator_outputs", 100),
@@ -65,19 +66,19 @@ DEFAULT = _t(
 )
 
 #: estimator and control loops at full rate (PX4's "high rate" option)
-HIGH_RATE = _t(
+HIGH_RATE: Final = _t(
     ("actuator_controls_0", 0), ("actuator_outputs", 0), ("vehicle_angular_velocity", 0),
     ("vehicle_attitude", 0), ("vehicle_attitude_setpoint", 0), ("vehicle_rates_setpoint", 0),
     ("sensor_combined", 0), ("vehicle_command", 0), ("vehicle_status", 0),
 )
 
 #: raw sensor data at full rate (PX4's "sensor comparison" / thermal calibration options)
-SENSORS = _t(
+SENSORS: Final = _t(
     ("sensor_accel", 0), ("sensor_gyro", 0), ("sensor_mag", 0), ("sensor_baro", 0),
     ("sensor_combined", 0), ("sensor_gps", 0), ("vehicle_command", 0), ("vehicle_status", 0),
 )
 
-PROFILES: dict[str, tuple[LoggedTopic, ...]] = {
+PROFILES: Final[dict[str, tuple[LoggedTopic, ...]]] = {
     "default": DEFAULT,
     "high_rate": HIGH_RATE,
     "sensors": SENSORS,

@@ -16,7 +16,7 @@ the encoded bytes, so a caller can size a message before deciding to write it.
 from __future__ import annotations
 
 import struct
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -36,23 +36,23 @@ __all__ = [
     "topic_format",
 ]
 
-MAGIC = b"ULog\x01\x12\x35"
-FILE_VERSION = 1
-SYNC_MAGIC = bytes((0x2F, 0x73, 0x13, 0x20, 0x25, 0x0C, 0xBB, 0x12))
-HEADER_SIZE = 16
-MAX_PAYLOAD = 0xFFFF
+MAGIC: Final = b"ULog\x01\x12\x35"
+FILE_VERSION: Final = 1
+SYNC_MAGIC: Final = bytes((0x2F, 0x73, 0x13, 0x20, 0x25, 0x0C, 0xBB, 0x12))
+HEADER_SIZE: Final = 16
+MAX_PAYLOAD: Final = 0xFFFF
 
 #: compat_flags[0] bit 0: the file has 'Q' default-parameter messages
-COMPAT_DEFAULT_PARAMETERS = 0x01
+COMPAT_DEFAULT_PARAMETERS: Final = 0x01
 #: incompat_flags[0] bit 0: data appended after the file (offsets in the flag-bits message)
-INCOMPAT_DATA_APPENDED = 0x01
+INCOMPAT_DATA_APPENDED: Final = 0x01
 
 #: syslog levels as written in 'L'/'C' messages (ASCII digit)
-LOG_LEVELS = {"EMERG": 0, "ALERT": 1, "CRIT": 2, "ERR": 3, "WARNING": 4, "NOTICE": 5,
+LOG_LEVELS: Final = {"EMERG": 0, "ALERT": 1, "CRIT": 2, "ERR": 3, "WARNING": 4, "NOTICE": 5,
               "INFO": 6, "DEBUG": 7}
 
 # Python value types of info/parameter messages -> struct code
-_INFO_CODES = {"int8_t": "b", "uint8_t": "B", "int16_t": "h", "uint16_t": "H",
+_INFO_CODES: Final = {"int8_t": "b", "uint8_t": "B", "int16_t": "h", "uint16_t": "H",
                "int32_t": "i", "uint32_t": "I", "int64_t": "q", "uint64_t": "Q",
                "float": "f", "double": "d", "bool": "?"}
 

@@ -22,7 +22,7 @@ without talking.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
@@ -35,17 +35,17 @@ if TYPE_CHECKING:
 
 __all__ = ["LOOP_INTERVAL_US", "MavlinkInstance"]
 
-LOOP_INTERVAL_US = 10_000
-RX_BYTES_PER_RUN = 4096
+LOOP_INTERVAL_US: Final = 10_000
+RX_BYTES_PER_RUN: Final = 4096
 #: messages handled per run at most; the rest waits in the parser, then in the port's buffer
-RX_MSGS_PER_RUN = 128
+RX_MSGS_PER_RUN: Final = 128
 #: modelled STM32 time per received message and per sent message (parsing, CRC, copying)
-CPU_NS_PER_RX_MSG = 20_000
-CPU_NS_PER_TX_MSG = 15_000
-CPU_NS_BASE = 20_000
-GCS_TIMEOUT_US = 3_000_000
+CPU_NS_PER_RX_MSG: Final = 20_000
+CPU_NS_PER_TX_MSG: Final = 15_000
+CPU_NS_BASE: Final = 20_000
+GCS_TIMEOUT_US: Final = 3_000_000
 #: unsigned messages PX4 still accepts when signing is on (the radio's own reports)
-UNSIGNED_ALLOWED = frozenset({mav.MAVLINK_MSG_ID_RADIO_STATUS})
+UNSIGNED_ALLOWED: Final = frozenset({mav.MAVLINK_MSG_ID_RADIO_STATUS})
 
 
 class _Stream:

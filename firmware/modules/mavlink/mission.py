@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
@@ -28,12 +28,12 @@ if TYPE_CHECKING:
 
 __all__ = ["SUPPORTED_NAV_CMDS", "MissionService"]
 
-RETRY_US = 500_000
-MAX_RETRIES = 5
-SUPPORTED_NAV_CMDS = frozenset({16, 17, 19, 20, 21, 22, 178})
-_REL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
-_ABS_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT})
-_NO_POS_CMDS = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no position
+RETRY_US: Final = 500_000
+MAX_RETRIES: Final = 5
+SUPPORTED_NAV_CMDS: Final = frozenset({16, 17, 19, 20, 21, 22, 178})
+_REL_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+_ABS_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT})
+_NO_POS_CMDS: Final = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no position
 
 
 class MissionService:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
@@ -29,8 +29,8 @@ if TYPE_CHECKING:
 
 __all__ = ["OffboardService", "project"]
 
-EARTH_RADIUS_M = 6371000.0
-NAN = float("nan")
+EARTH_RADIUS_M: Final = 6371000.0
+NAN: Final = float("nan")
 
 
 def project(lat: float, lon: float, ref_lat: float, ref_lon: float) -> tuple[float, float]:

@@ -17,7 +17,7 @@ import calendar
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
@@ -34,11 +34,11 @@ __all__ = [
     "StatustextService",
 ]
 
-STATUSTEXT_LEN = 50
-SERIAL_CHUNK = 70
-LOG_CHUNK = 90
+STATUSTEXT_LEN: Final = 50
+SERIAL_CHUNK: Final = 70
+LOG_CHUNK: Final = 90
 #: LOG_DATA packets per run at most (the data rate limits them further)
-LOG_PACKETS_PER_RUN = 32
+LOG_PACKETS_PER_RUN: Final = 32
 
 
 class StatustextService:
@@ -251,4 +251,4 @@ class LogService:
 
 
 #: REQUEST_MESSAGE ids answered by something other than a stream builder (hook for more)
-REQUESTABLE: dict[int, Callable[[MavlinkInstance], None]] = {}
+REQUESTABLE: Final[dict[int, Callable[[MavlinkInstance], None]]] = {}

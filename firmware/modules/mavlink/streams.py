@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
@@ -19,14 +19,14 @@ if TYPE_CHECKING:
 
 __all__ = ["DEFAULT_RATES", "STREAMS", "StreamDef", "base_mode_and_state", "custom_mode"]
 
-UINT16_MAX = 0xFFFF
-INT16_MAX = 0x7FFF
+UINT16_MAX: Final = 0xFFFF
+INT16_MAX: Final = 0x7FFF
 
 # vehicle_status.nav_state -> PX4 custom (main, sub) mode, as the HEARTBEAT carries it.
-_MAIN = {0: (1, 0), 1: (2, 0), 2: (3, 0), 3: (4, 4), 4: (4, 3), 5: (4, 5), 10: (5, 0),
+_MAIN: Final = {0: (1, 0), 1: (2, 0), 2: (3, 0), 3: (4, 4), 4: (4, 3), 5: (4, 5), 10: (5, 0),
          12: (4, 6), 13: (1, 0), 14: (6, 0), 15: (7, 0), 17: (4, 2), 18: (4, 6), 19: (4, 8),
          20: (4, 9), 21: (3, 0)}
-_AUTO_NAV = frozenset({3, 4, 5, 12, 17, 18, 19, 20})
+_AUTO_NAV: Final = frozenset({3, 4, 5, 12, 17, 18, 19, 20})
 
 
 def custom_mode(nav_state: int) -> int:
@@ -321,7 +321,7 @@ class StreamDef:
         self.build = build
 
 
-STREAMS: dict[str, StreamDef] = {s.name: s for s in (
+STREAMS: Final[dict[str, StreamDef]] = {s.name: s for s in (
     StreamDef("HEARTBEAT", _heartbeat), StreamDef("SYS_STATUS", _sys_status),
     StreamDef("ATTITUDE", _attitude), StreamDef("ATTITUDE_QUATERNION", _attitude_q),
     StreamDef("LOCAL_POSITION_NED", _local_position),
@@ -332,25 +332,25 @@ STREAMS: dict[str, StreamDef] = {s.name: s for s in (
     StreamDef("ALTITUDE", _altitude), StreamDef("ESTIMATOR_STATUS", _estimator_status),
     StreamDef("HIGHRES_IMU", _highres_imu), StreamDef("MISSION_CURRENT", _mission_current),
 )}
-STREAM_BY_ID: dict[int, StreamDef] = {s.msg_id: s for s in STREAMS.values()}
+STREAM_BY_ID: Final[dict[int, StreamDef]] = {s.msg_id: s for s in STREAMS.values()}
 
-_NORMAL = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 15.0, "ATTITUDE_QUATERNION": 10.0,
+_NORMAL: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 15.0, "ATTITUDE_QUATERNION": 10.0,
            "LOCAL_POSITION_NED": 1.0, "GLOBAL_POSITION_INT": 5.0, "GPS_RAW_INT": 1.0,
            "VFR_HUD": 4.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 5.0, "SERVO_OUTPUT_RAW": 1.0,
            "EXTENDED_SYS_STATE": 1.0, "HOME_POSITION": 0.5, "ALTITUDE": 1.0,
            "ESTIMATOR_STATUS": 0.5, "MISSION_CURRENT": 1.0}
-_ONBOARD = {"HEARTBEAT": 1.0, "SYS_STATUS": 5.0, "ATTITUDE": 100.0,
+_ONBOARD: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 5.0, "ATTITUDE": 100.0,
             "ATTITUDE_QUATERNION": 50.0, "LOCAL_POSITION_NED": 30.0,
             "GLOBAL_POSITION_INT": 50.0, "GPS_RAW_INT": 5.0, "VFR_HUD": 10.0,
             "BATTERY_STATUS": 0.5, "RC_CHANNELS": 20.0, "SERVO_OUTPUT_RAW": 10.0,
             "EXTENDED_SYS_STATE": 5.0, "HOME_POSITION": 0.5, "ALTITUDE": 10.0,
             "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0, "MISSION_CURRENT": 1.0}
-_CONFIG = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 50.0, "ATTITUDE_QUATERNION": 50.0,
+_CONFIG: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 50.0, "ATTITUDE_QUATERNION": 50.0,
            "LOCAL_POSITION_NED": 30.0, "GLOBAL_POSITION_INT": 10.0, "GPS_RAW_INT": 10.0,
            "VFR_HUD": 20.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 10.0,
            "SERVO_OUTPUT_RAW": 20.0, "EXTENDED_SYS_STATE": 2.0, "HOME_POSITION": 0.5,
            "ALTITUDE": 10.0, "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0,
            "MISSION_CURRENT": 1.0}
 #: mode -> stream -> default rate (Hz)
-DEFAULT_RATES: dict[str, dict[str, float]] = {"normal": _NORMAL, "onboard": _ONBOARD,
+DEFAULT_RATES: Final[dict[str, dict[str, float]]] = {"normal": _NORMAL, "onboard": _ONBOARD,
                                               "config": _CONFIG, "minimal": {"HEARTBEAT": 1.0}}

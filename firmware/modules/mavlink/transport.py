@@ -17,17 +17,17 @@ System carries as ``system.hw``:
 from __future__ import annotations
 
 from collections import deque
-from typing import Any
+from typing import Any, Final
 
 from mypy_extensions import mypyc_attr
 
 __all__ = ["Transport", "TransportError", "UartTransport", "UdpTransport"]
 
 #: what PX4's serial driver buffers for transmission; a message that does not fit is dropped
-UART_TX_BUFFER = 1024
+UART_TX_BUFFER: Final = 1024
 #: datagrams queued for the receiver between two runs before new ones are dropped (the
 #: socket buffer of the network stack)
-UDP_RX_QUEUE = 64
+UDP_RX_QUEUE: Final = 64
 
 
 @mypyc_attr(native_class=False)

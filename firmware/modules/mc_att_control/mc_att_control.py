@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from firmware.modules.mc_att_control.quat import (
     Quat,
@@ -41,9 +41,9 @@ if TYPE_CHECKING:
 
 __all__ = ["PARAMS", "McAttControlModule", "attitude_error_rates"]
 
-_G = "Multicopter Attitude Control"
-_GM = "Multicopter Position Control"
-_D2R = math.pi / 180.0
+_G: Final = "Multicopter Attitude Control"
+_GM: Final = "Multicopter Position Control"
+_D2R: Final = math.pi / 180.0
 
 
 def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = "",

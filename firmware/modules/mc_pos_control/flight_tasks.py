@@ -17,7 +17,7 @@ Setpoints use NaN for "not controlled" as in PX4's trajectory_setpoint.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
     from firmware.modules.mc_pos_control.mc_pos_control import McPosControlModule
@@ -36,8 +36,8 @@ __all__ = [
 ]
 
 SP_POSITION, SP_VELOCITY, SP_LOITER, SP_TAKEOFF, SP_LAND, SP_IDLE = range(6)
-NAN = math.nan
-G = 9.80665
+NAN: Final = math.nan
+G: Final = 9.80665
 
 
 class LineTrajectory:

@@ -9,10 +9,11 @@ below a GPS's noise over a flight's few kilometres).
 from __future__ import annotations
 
 import math
+from typing import Final
 
 __all__ = ["EARTH_RADIUS_M", "MapProjection"]
 
-EARTH_RADIUS_M = 6371000.0
+EARTH_RADIUS_M: Final = 6371000.0
 
 
 class MapProjection:

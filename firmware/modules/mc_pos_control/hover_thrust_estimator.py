@@ -13,9 +13,11 @@ Linearised about the estimate, H = g T / h^2.
 
 from __future__ import annotations
 
+from typing import Final
+
 __all__ = ["HoverThrustEstimator"]
 
-G = 9.80665
+G: Final = 9.80665
 
 
 class HoverThrustEstimator:

@@ -6,12 +6,14 @@ mc_att_control (stabilized mode uses them too) and read here through the paramet
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["PARAMS"]
 
-_G = "Multicopter Position Control"
-_H = "Hover Thrust Estimator"
+_G: Final = "Multicopter Position Control"
+_H: Final = "Hover Thrust Estimator"
 
 
 def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = "",
@@ -20,7 +22,7 @@ def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = 
                     decimals=decimals)
 
 
-PARAMS: tuple[ParamDef, ...] = (
+PARAMS: Final[tuple[ParamDef, ...]] = (
     _p("MPC_XY_P", 0.95, 0.0, 2.0, "Horizontal position P gain", "1/s"),
     _p("MPC_Z_P", 1.0, 0.0, 1.5, "Vertical position P gain", "1/s"),
     _p("MPC_XY_VEL_P_ACC", 1.8, 1.2, 5.0, "Horizontal velocity P gain", "1/s"),

@@ -20,12 +20,13 @@ The attitude setpoint follows from the thrust direction and the yaw setpoint.
 from __future__ import annotations
 
 import math
+from typing import Final
 
 from firmware.modules.mc_att_control.quat import Quat, qfrom_dcm_columns
 
 __all__ = ["G", "PositionControl", "attitude_from_thrust"]
 
-G = 9.80665
+G: Final = 9.80665
 _nan = math.nan
 _isfinite = math.isfinite
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = ["PARAMS", "McRateControlModule"]
 
-_G = "Multicopter Rate Control"
+_G: Final = "Multicopter Rate Control"
 
 
 def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = "",
@@ -74,7 +74,7 @@ PARAMS: tuple[ParamDef, ...] = (
 )
 
 #: quad X mixer factors (roll, pitch, yaw) per motor, used only to predict saturation
-_S = 0.707107
+_S: Final = 0.707107
 
 
 class McRateControlModule(WorkItemModule):

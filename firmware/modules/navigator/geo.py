@@ -8,11 +8,12 @@ both sides (navigator and tests) keep "reached" decisions consistent.
 from __future__ import annotations
 
 import math
+from typing import Final
 
 __all__ = ["EARTH_RADIUS_M", "bearing_rad", "distance_m", "offset_deg"]
 
-EARTH_RADIUS_M = 6371000.0
-_D2R = math.pi / 180.0
+EARTH_RADIUS_M: Final = 6371000.0
+_D2R: Final = math.pi / 180.0
 
 
 def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:

@@ -17,7 +17,7 @@ time (``time_inside``) once reached, then the next item if ``autocontinue``. As 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Final
 
 from firmware.modules.navigator.geo import bearing_rad, distance_m
 from firmware.modules.navigator.modes import (
@@ -30,15 +30,20 @@ from firmware.modules.navigator.modes import (
 
 __all__ = ["MissionMode"]
 
-WAYPOINT, LOITER_UNLIM, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 19, 20, 21, 22
-_POSITION_ITEMS = frozenset({WAYPOINT, LOITER_UNLIM, LOITER_TIME, LAND, TAKEOFF})
-CMD_RTL = 20
+WAYPOINT: Final = 16
+LOITER_UNLIM: Final = 17
+LOITER_TIME: Final = 19
+RTL: Final = 20
+LAND: Final = 21
+TAKEOFF: Final = 22
+_POSITION_ITEMS: Final = frozenset({WAYPOINT, LOITER_UNLIM, LOITER_TIME, LAND, TAKEOFF})
+CMD_RTL: Final = 20
 
 # work phases of one item
 P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE = range(6)
 
 
-DO_CHANGE_SPEED = 178
+DO_CHANGE_SPEED: Final = 178
 
 
 class MissionMode(NavMode):

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from firmware.modules.dataman import find_store
 from firmware.modules.navigator.geo import distance_m
@@ -42,10 +42,16 @@ if TYPE_CHECKING:
 __all__ = ["NavigatorModule"]
 
 # vehicle_status.NAVIGATION_STATE_*
-NAV_MISSION, NAV_LOITER, NAV_RTL, NAV_TAKEOFF, NAV_LAND = 3, 4, 5, 17, 18
-POS_TIMEOUT_US = 1_000_000
-REPUBLISH_US = 1_000_000
-CMD_TAKEOFF, CMD_REPOSITION, CMD_MISSION_START = 22, 192, 300
+NAV_MISSION: Final = 3
+NAV_LOITER: Final = 4
+NAV_RTL: Final = 5
+NAV_TAKEOFF: Final = 17
+NAV_LAND: Final = 18
+POS_TIMEOUT_US: Final = 1_000_000
+REPUBLISH_US: Final = 1_000_000
+CMD_TAKEOFF: Final = 22
+CMD_REPOSITION: Final = 192
+CMD_MISSION_START: Final = 300
 
 
 class NavigatorModule(WorkItemModule):

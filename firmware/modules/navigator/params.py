@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["PARAMS"]
 
-_M, _R = "Mission", "Return Mode"
+_M: Final = "Mission"
+_R: Final = "Return Mode"
 
-PARAMS: tuple[ParamDef, ...] = (
+PARAMS: Final[tuple[ParamDef, ...]] = (
     ParamDef("MIS_TAKEOFF_ALT", "FLOAT", 2.5, min=0.0, max=80.0, unit="m", group=_M,
              decimals=1, short="Default take-off altitude",
              long="Above home, for Takeoff mode and for the climb a mission inserts when it "

@@ -14,7 +14,7 @@ Without a home position it lands where it is; on the ground it does nothing.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Final
 
 from firmware.modules.navigator.geo import bearing_rad, distance_m
 from firmware.modules.navigator.modes import SP_LAND, SP_LOITER, SP_POSITION, NavMode
@@ -22,7 +22,7 @@ from firmware.modules.navigator.modes import SP_LAND, SP_LOITER, SP_POSITION, Na
 __all__ = ["RTL_STATES", "RtlMode"]
 
 CLIMB, RETURN, DESCEND, LOITER, LAND, LANDED = range(6)
-RTL_STATES = ("climb", "return", "descend", "loiter", "land", "landed")
+RTL_STATES: Final[tuple[str, ...]] = ("climb", "return", "descend", "loiter", "land", "landed")
 
 
 class RtlMode(NavMode):

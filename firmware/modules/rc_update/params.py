@@ -8,13 +8,15 @@ an uncalibrated radio never flies the vehicle: the calibration (or the airframe)
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["MAX_CHANNELS", "PARAMS", "SWITCH_MAPS"]
 
-MAX_CHANNELS = 18
-_G = "Radio Calibration"
-_GS = "Radio Switches"
+MAX_CHANNELS: Final = 18
+_G: Final = "Radio Calibration"
+_GS: Final = "Radio Switches"
 
 
 def _channel_params(n: int) -> tuple[ParamDef, ...]:
@@ -46,7 +48,7 @@ def _th(name: str, short: str, default: float = 0.75) -> ParamDef:
 
 
 #: switch name in manual_control_switches -> (map parameter, threshold parameter)
-SWITCH_MAPS: dict[str, tuple[str, str]] = {
+SWITCH_MAPS: Final[dict[str, tuple[str, str]]] = {
     "return_switch": ("RC_MAP_RETURN_SW", "RC_RETURN_TH"),
     "loiter_switch": ("RC_MAP_LOITER_SW", "RC_LOITER_TH"),
     "offboard_switch": ("RC_MAP_OFFB_SW", "RC_OFFB_TH"),
@@ -55,7 +57,7 @@ SWITCH_MAPS: dict[str, tuple[str, str]] = {
     "gear_switch": ("RC_MAP_GEAR_SW", "RC_GEAR_TH"),
 }
 
-PARAMS: tuple[ParamDef, ...] = tuple(
+PARAMS: Final[tuple[ParamDef, ...]] = tuple(
     p for n in range(1, MAX_CHANNELS + 1) for p in _channel_params(n)
 ) + (
     _map("RC_MAP_ROLL", "Roll control channel", _G, 1),

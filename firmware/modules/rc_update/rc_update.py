@@ -19,30 +19,44 @@ signal must stay good 100 ms before it is believed.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Final
 
 from firmware.modules.rc_update.params import MAX_CHANNELS, PARAMS, SWITCH_MAPS
 from firmware.platform.module import WorkItemModule
 
 __all__ = ["RcUpdateModule", "mode_slot", "scale_channel", "switch_position"]
 
-SWITCH_NONE, SWITCH_ON, SWITCH_MIDDLE, SWITCH_OFF = 0, 1, 2, 3
-STALE_US = 500_000        # no input_rc for this long: signal lost
-REGAIN_US = 100_000       # a regained signal must stay good this long
-WATCHDOG_US = 100_000
-MODE_SLOTS = 6
-_STICK_MOVING = 0.05
+SWITCH_NONE: Final = 0
+SWITCH_ON: Final = 1
+SWITCH_MIDDLE: Final = 2
+SWITCH_OFF: Final = 3
+STALE_US: Final = 500_000        # no input_rc for this long: signal lost
+REGAIN_US: Final = 100_000       # a regained signal must stay good this long
+WATCHDOG_US: Final = 100_000
+MODE_SLOTS: Final = 6
+_STICK_MOVING: Final = 0.05
 
 # rc_channels.function indexes (firmware/msg/rc_channels.msg)
-F_THROTTLE, F_ROLL, F_PITCH, F_YAW, F_MODE, F_RETURN, F_LOITER, F_OFFBOARD = 0, 1, 2, 3, 4, 5, 7, 8
-F_FLAPS, F_AUX1, F_KILL, F_GEAR, F_ARM = 10, 11, 20, 22, 24
-_FUNCTION_PARAMS: tuple[tuple[int, str], ...] = (
+F_THROTTLE: Final = 0
+F_ROLL: Final = 1
+F_PITCH: Final = 2
+F_YAW: Final = 3
+F_MODE: Final = 4
+F_RETURN: Final = 5
+F_LOITER: Final = 7
+F_OFFBOARD: Final = 8
+F_FLAPS: Final = 10
+F_AUX1: Final = 11
+F_KILL: Final = 20
+F_GEAR: Final = 22
+F_ARM: Final = 24
+_FUNCTION_PARAMS: Final[tuple[tuple[int, str], ...]] = (
     (F_THROTTLE, "RC_MAP_THROTTLE"), (F_ROLL, "RC_MAP_ROLL"), (F_PITCH, "RC_MAP_PITCH"),
     (F_YAW, "RC_MAP_YAW"), (F_MODE, "RC_MAP_FLTMODE"), (F_RETURN, "RC_MAP_RETURN_SW"),
     (F_LOITER, "RC_MAP_LOITER_SW"), (F_OFFBOARD, "RC_MAP_OFFB_SW"), (F_FLAPS, "RC_MAP_FLAPS"),
     (F_KILL, "RC_MAP_KILL_SW"), (F_GEAR, "RC_MAP_GEAR_SW"), (F_ARM, "RC_MAP_ARM_SW"),
 ) + tuple((F_AUX1 + i, f"RC_MAP_AUX{i + 1}") for i in range(6))
-_SWITCH_FUNCTION = {"return_switch": F_RETURN, "loiter_switch": F_LOITER,
+_SWITCH_FUNCTION: Final = {"return_switch": F_RETURN, "loiter_switch": F_LOITER,
                     "offboard_switch": F_OFFBOARD, "kill_switch": F_KILL, "arm_switch": F_ARM,
                     "gear_switch": F_GEAR}
 

@@ -14,6 +14,7 @@ vehicle, not the board, so it uses its own ``CAL_<KIND>n_ROT`` instead.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Final
 
 from firmware.lib.rotation import euler_matrix, rotation_matrix
 
@@ -24,8 +25,8 @@ Matrix = tuple[tuple[float, float, float], tuple[float, float, float],
 _I: Matrix = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 #: priority of a sensor without a configured one (PX4: uninitialized -> medium / high)
-PRIORITY_INTERNAL = 50
-PRIORITY_EXTERNAL = 75
+PRIORITY_INTERNAL: Final = 50
+PRIORITY_EXTERNAL: Final = 75
 
 
 def _mul(a: Matrix, b: Matrix) -> Matrix:

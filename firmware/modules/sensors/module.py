@@ -31,7 +31,7 @@ before vehicle_imu). The gyro bias ekf2 estimates (``estimator_sensor_bias``) is
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Final
 
 from firmware.modules.sensors.calibration import Calibration, board_rotation
 from firmware.modules.sensors.filters import LowPass2p3
@@ -43,29 +43,29 @@ from firmware.platform.uorb import ORB_MULTI_MAX_INSTANCES, SubscriptionCallback
 __all__ = ["SensorsModule", "isa_altitude_m"]
 
 #: health checks and watchdog wake-up, us
-CHECK_INTERVAL_US = 10_000
-STATUS_INTERVAL_US = 100_000
+CHECK_INTERVAL_US: Final = 10_000
+STATUS_INTERVAL_US: Final = 100_000
 #: magnetometers and barometers are looked at every 5th check (50 ms)
-SLOW_CHECK_DIVIDER = 5
+SLOW_CHECK_DIVIDER: Final = 5
 #: timeouts (PX4 treats an IMU silent for 20 ms as failed; baro and mag are slower sensors)
-IMU_TIMEOUT_US = 20_000
-BARO_TIMEOUT_US = 300_000
-MAG_TIMEOUT_US = 300_000
+IMU_TIMEOUT_US: Final = 20_000
+BARO_TIMEOUT_US: Final = 300_000
+MAG_TIMEOUT_US: Final = 300_000
 #: disagreement thresholds for failover, twice PX4's pre-arm limits (COM_ARM_IMU_GYR 0.25 rad/s,
 #: COM_ARM_IMU_ACC 0.7 m/s^2, COM_ARM_MAG_ANG 45 deg); baro in Pa (~ 25 m)
-GYRO_LIMIT_RAD_S = 0.5
-ACCEL_LIMIT_M_S2 = 1.4
-MAG_LIMIT_RAD = math.radians(45.0)
-BARO_LIMIT_PA = 300.0
+GYRO_LIMIT_RAD_S: Final = 0.5
+ACCEL_LIMIT_M_S2: Final = 1.4
+MAG_LIMIT_RAD: Final = math.radians(45.0)
+BARO_LIMIT_PA: Final = 300.0
 
-_T0_K = 288.15
-_LAPSE_K_M = 0.0065
-_ISA_EXP = 0.190263          # R L / (g M) of the ISA troposphere
-_R_AIR = 287.05              # J/(kg K)
-_KELVIN = 273.15
+_T0_K: Final = 288.15
+_LAPSE_K_M: Final = 0.0065
+_ISA_EXP: Final = 0.190263          # R L / (g M) of the ISA troposphere
+_R_AIR: Final = 287.05              # J/(kg K)
+_KELVIN: Final = 273.15
 
 
-_DEFAULTS = {d.name: d.default for d in PARAMS}
+_DEFAULTS: Final = {d.name: d.default for d in PARAMS}
 
 
 def isa_altitude_m(pressure_pa: float, qnh_pa: float = 101325.0) -> float:

@@ -9,22 +9,24 @@ leave the data unchanged: no slot matches a device (ID 0), offsets 0, scales 1.
 
 from __future__ import annotations
 
+from typing import Final
+
 from firmware.platform.params import ParamDef
 
 __all__ = ["N_ACCEL_CAL", "N_BARO_CAL", "N_GYRO_CAL", "N_MAG_CAL", "PARAMS", "PRIORITY_VALUES"]
 
-N_ACCEL_CAL = 3
-N_GYRO_CAL = 3
-N_MAG_CAL = 4
-N_BARO_CAL = 3
+N_ACCEL_CAL: Final = 3
+N_GYRO_CAL: Final = 3
+N_MAG_CAL: Final = 4
+N_BARO_CAL: Final = 3
 
-_CAL = "Sensor Calibration"
-_SENS = "Sensors"
-_IMU = "Sensors"
+_CAL: Final = "Sensor Calibration"
+_SENS: Final = "Sensors"
+_IMU: Final = "Sensors"
 
-PRIORITY_VALUES = {-1: "Uninitialized", 0: "Disabled", 1: "Min", 25: "Low", 50: "Medium (Default)",
+PRIORITY_VALUES: Final = {-1: "Uninitialized", 0: "Disabled", 1: "Min", 25: "Low", 50: "Medium (Default)",
                    75: "High", 100: "Max"}
-_ROT_LONG = ("PX4 rotation enum of the sensor relative to the vehicle (external sensors only); "
+_ROT_LONG: Final = ("PX4 rotation enum of the sensor relative to the vehicle (external sensors only); "
              "-1 for an internal sensor, which follows SENS_BOARD_ROT.")
 
 
@@ -137,4 +139,4 @@ def _build() -> tuple[ParamDef, ...]:
 
 
 #: Every parameter of the sensors module.
-PARAMS: tuple[ParamDef, ...] = _build()
+PARAMS: Final[tuple[ParamDef, ...]] = _build()

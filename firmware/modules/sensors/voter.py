@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Final
 
 from firmware.modules.sensors.calibration import Calibration
 from firmware.platform.uorb import TopicNode
@@ -37,13 +38,13 @@ __all__ = ["Event", "SensorGroup", "SensorInstance"]
 Event = tuple[str, int, int, str]
 
 #: filter weight of one observation in the inconsistency average (~0.1 s at 250 Hz)
-_ALPHA = 0.04
+_ALPHA: Final = 0.04
 #: errors per observation (low-passed) above which a sensor is unhealthy
-ERROR_RATE_LIMIT = 1.0
+ERROR_RATE_LIMIT: Final = 1.0
 #: how long a disagreement must last before it counts, us
-_INCONSISTENT_US = 1_000_000
+_INCONSISTENT_US: Final = 1_000_000
 #: a sensor that clipped within this time is not trusted in a two-sensor disagreement, us
-_CLIP_HOLD_US = 1_000_000
+_CLIP_HOLD_US: Final = 1_000_000
 
 
 class SensorInstance:
