@@ -35,8 +35,8 @@ R_OK: Final = 0
 R_RESULT: Final = 1
 R_ERROR: Final = 2
 
-_dumps = marshal.dumps
-_loads = marshal.loads
+_dumps: Final = marshal.dumps
+_loads: Final = marshal.loads
 
 
 @mypyc_attr(native_class=False)

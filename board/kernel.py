@@ -46,8 +46,8 @@ PRIO_DEFAULT: Final = 0
 #: Threads: work queue dispatch and tasks (work queues add their own offset, higher runs first).
 PRIO_THREAD: Final = 100
 
-_heappush = heapq.heappush
-_heappop = heapq.heappop
+_heappush: Final = heapq.heappush
+_heappop: Final = heapq.heappop
 
 
 @mypyc_attr(native_class=False)

@@ -13,9 +13,9 @@ Items schedule themselves PX4-style: ``schedule_now()``, ``schedule_delayed(us)`
 
 from __future__ import annotations
 
+import heapq
 from collections import deque
 from dataclasses import dataclass
-from heapq import heappush as _heappush
 from typing import TYPE_CHECKING, Callable, Final
 
 from mypy_extensions import mypyc_attr
@@ -25,6 +25,8 @@ from board.kernel import PRIO_THREAD, Kernel, KernelError
 if TYPE_CHECKING:
     from firmware.platform import Platform
     from firmware.platform.hrt import HrtCall
+
+_heappush: Final = heapq.heappush
 
 __all__ = ["WqConfig", "WQ_CONFIGS", "WorkQueue", "WorkQueueManager", "WorkItem"]
 

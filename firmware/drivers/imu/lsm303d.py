@@ -95,7 +95,7 @@ STATE_RESET, STATE_WAIT_FOR_RESET, STATE_CONFIGURE, STATE_READ = range(4)
 
 
 #: X/Y/Z little-endian int16 triples of a FIFO burst, one tuple per sample.
-_iter_xyz_le = struct.Struct("<3h").iter_unpack
+_iter_xyz_le: Final = struct.Struct("<3h").iter_unpack
 
 
 def _s16(lo: int, hi: int) -> int:

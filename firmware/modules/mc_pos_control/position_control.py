@@ -27,8 +27,8 @@ from firmware.modules.mc_att_control.quat import Quat, qfrom_dcm_columns
 __all__ = ["G", "PositionControl", "attitude_from_thrust"]
 
 G: Final = 9.80665
-_nan = math.nan
-_isfinite = math.isfinite
+_nan: Final = math.nan
+_isfinite: Final = math.isfinite
 
 
 def attitude_from_thrust(tx: float, ty: float, tz: float, yaw: float) -> Quat:
