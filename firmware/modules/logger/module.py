@@ -34,6 +34,7 @@ class LoggerModule(ModuleBase):
             if fix is not None and fix.time_utc_usec:
                 self._utc_offset_us = fix.time_utc_usec - fix.timestamp
         if self._utc_offset_us is None:
+            assert self.logger is not None  # UTC is asked of a running logger
             return self.logger.utc_epoch_s * 1_000_000 + self.platform.hrt.absolute_time()
         return self._utc_offset_us + self.platform.hrt.absolute_time()
 

@@ -86,6 +86,7 @@ class McPosControlModule(WorkItemModule):
 
     def _start(self) -> None:
         orb = self.platform.orb
+        assert self.work_item is not None  # ModuleBase.start() made it
         self.sub_lpos = self.subscribe_callback(self.work_item, "vehicle_local_position",
                                                 interval_us=self.INTERVAL_LIMIT_US)
         self.sub_att = self.subscribe("vehicle_attitude")
@@ -110,6 +111,7 @@ class McPosControlModule(WorkItemModule):
 
     def _load_params(self) -> None:
         params = self.system.params
+        assert params is not None  # parameters are loaded before modules start
         self.prm = {d.name: float(params[d.name]) for d in PARAMS}
         p = self.prm
         c = self.ctrl
@@ -127,8 +129,8 @@ class McPosControlModule(WorkItemModule):
         self.hte.std_init = p["HTE_HT_ERR_INIT"]
         if not self.hte.valid:
             c.set_hover_thrust(p["MPC_THR_HOVER"])
-        self.man_tilt_max = float(params.get("MPC_MAN_TILT_MAX", 35.0)) * _D2R
-        self.man_yaw_max = float(params.get("MPC_MAN_Y_MAX", 150.0)) * _D2R
+        self.man_tilt_max = float(params.get("MPC_MAN_TILT_MAX", 35.0) or 0.0) * _D2R
+        self.man_yaw_max = float(params.get("MPC_MAN_Y_MAX", 150.0) or 0.0) * _D2R
 
     # -- helpers for the flight tasks -------------------------------------------------------------
 
