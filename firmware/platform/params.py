@@ -27,7 +27,7 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol, overload
 
 from mypy_extensions import mypyc_attr
 
@@ -227,6 +227,11 @@ class Params:
             return self.values[name]
         except KeyError:
             raise ParamError(f"unknown parameter {name}") from None
+
+    @overload
+    def get(self, name: str, default: int | float) -> int | float: ...
+    @overload
+    def get(self, name: str, default: None = None) -> int | float | None: ...
 
     def get(self, name: str, default: int | float | None = None) -> int | float | None:
         return self.values.get(name, default)

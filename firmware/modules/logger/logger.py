@@ -19,7 +19,7 @@ import datetime as _dt
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO, cast
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from firmware.modules.logger.profiles import LoggedTopic, get_profile
 from firmware.modules.logger.ulog import UlogError, UlogWriter, formats_for
@@ -266,7 +266,7 @@ class Logger(WorkItem):
         path.parent.mkdir(parents=True, exist_ok=True)
         self.buffer = SdWriteBuffer(open(path, "wb"), self.buffer_bytes,  # noqa: SIM115
                                     self.sd_write_rate_bytes_s, now)
-        w = self.writer = UlogWriter(cast(BinaryIO, self.buffer), now)  # a write() sink
+        w = self.writer = UlogWriter(self.buffer, now)
         self.current_path = path
         self.log_files.append(path)
         self._start_us = now

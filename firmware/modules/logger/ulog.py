@@ -16,7 +16,7 @@ the encoded bytes, so a caller can size a message before deciding to write it.
 from __future__ import annotations
 
 import struct
-from typing import Any, BinaryIO, Final
+from typing import Any, Final, Protocol
 
 from mypy_extensions import mypyc_attr
 
@@ -142,6 +142,12 @@ def formats_for(topic: str, mdef: MessageDef, registry: MessageRegistry) -> list
     return out
 
 
+class ByteSink(Protocol):
+    """Where a :class:`UlogWriter` writes: a binary file, or the logger's SD buffer."""
+
+    def write(self, data: bytes, /) -> int: ...
+
+
 class UlogWriter:
     """Encode one ULog file onto ``fileobj`` (anything with ``write(bytes)``).
 
@@ -150,7 +156,7 @@ class UlogWriter:
     writer raises :class:`UlogError` otherwise, since readers would not see them.
     """
 
-    def __init__(self, fileobj: BinaryIO, start_timestamp_us: int, *,
+    def __init__(self, fileobj: ByteSink, start_timestamp_us: int, *,
                  compat_flags: int = 0, incompat_flags: int = 0) -> None:
         if start_timestamp_us < 0:
             raise UlogError(f"negative start timestamp {start_timestamp_us}")

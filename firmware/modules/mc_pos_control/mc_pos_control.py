@@ -129,8 +129,8 @@ class McPosControlModule(WorkItemModule):
         self.hte.std_init = p["HTE_HT_ERR_INIT"]
         if not self.hte.valid:
             c.set_hover_thrust(p["MPC_THR_HOVER"])
-        self.man_tilt_max = float(params.get("MPC_MAN_TILT_MAX", 35.0) or 0.0) * _D2R
-        self.man_yaw_max = float(params.get("MPC_MAN_Y_MAX", 150.0) or 0.0) * _D2R
+        self.man_tilt_max = float(params.get("MPC_MAN_TILT_MAX", 35.0)) * _D2R
+        self.man_yaw_max = float(params.get("MPC_MAN_Y_MAX", 150.0)) * _D2R
 
     # -- helpers for the flight tasks -------------------------------------------------------------
 
