@@ -59,9 +59,6 @@ EXCLUDED: frozenset[str] = frozenset({
     # parameter values are ``int | float``, which mypyc would store as floats
     "firmware/platform/params.py", "firmware/platform/bson.py", "firmware/shell/cmd_param.py",
     "firmware/modules/mavlink/params.py", "firmware/drivers/px4io/params.py", "board/adc.py",
-    # the DSM decoder loses frame sync compiled (rc_dsm_out_of_range, rc_frame_loss_burst
-    # never see RC); not understood yet, so it stays Python
-    "ioproc/rc/dsm.py",
 })
 
 

@@ -221,7 +221,8 @@ class DsmDecoder(RcDecoder):
         self._last_rx_us = t_us
         return True
 
-    def _guess(self, words: list[int]) -> None:
+    def _guess(self, words: list[int]) -> int | None:
+        """Add a frame's evidence; the resolution once it is known (also in ``mode``)."""
         self._samples += 1
         for g, dec in ((self._g11, decode_word11), (self._g10, decode_word10)):
             mask = 0
@@ -236,14 +237,15 @@ class DsmDecoder(RcDecoder):
                 mask |= bit
             g.add(mask, dup)
         if self._samples < DSM_GUESS_FRAMES:
-            return
+            return None
         for mode, g in ((11, self._g11), (10, self._g10)):
             n = g.channels(self._samples)
             if n:
                 self.mode = mode
                 self.learned_count = n
-                return
+                return mode
         self._reset_guess()
+        return None
 
     def _decode(self, t_us: int, buf: bytearray) -> bool:
         """Decode one 16-byte frame; False means resynchronise (and maybe a drop)."""
@@ -253,13 +255,17 @@ class DsmDecoder(RcDecoder):
         self._last_decode_us = t_us
         words = [(buf[i] << 8) | buf[i + 1] for i in range(2, DSM_FRAME_LEN, 2)]
         count = self.learned_count
-        if self.mode is None:
-            self._guess(words)
-            if self.mode is None:
+        # The mode goes through a local: after ``self.mode is None`` mypy keeps ``self.mode``
+        # narrowed to None across the call that sets it, and mypyc's compiled check of that
+        # narrowed type raised TypeError on the guess's frame.
+        mode = self.mode
+        if mode is None:
+            mode = self._guess(words)
+            if mode is None:
                 return False  # frames used for guessing are not output (and not drops)
             if not self.px4_count_quirk:
                 count = self.learned_count
-        if self.mode == 11:
+        if mode == 11:
             dec, tab = decode_word11, self._tab11
         else:
             dec, tab = decode_word10, self._tab10
