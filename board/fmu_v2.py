@@ -322,13 +322,15 @@ class FmuV2Board(Board):
         from firmware.drivers.gps.gps import GpsDriver
         from firmware.drivers.imu.l3gd20 import L3gd20Driver
         from firmware.drivers.imu.lsm303d import Lsm303dDriver
-        from firmware.drivers.imu.mpu6000 import Mpu6000Driver
+        from firmware.drivers.imu.mpu6000 import Mpu6000Driver, gyro_rate_limit
         from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
 
         p = self.platform
         pin = self.gpio.pin
+        rate_max = gyro_rate_limit(self.system.params if self.system is not None else None)
         makers = {
-            "mpu6000": lambda: Mpu6000Driver(p, self.spi_handle("mpu6000"), drdy_pin=pin("PD15")),
+            "mpu6000": lambda: Mpu6000Driver(p, self.spi_handle("mpu6000"), drdy_pin=pin("PD15"),
+                                             max_rate_hz=rate_max),
             "l3gd20": lambda: L3gd20Driver(p, self.spi_handle("l3gd20"), drdy_pin=pin("PB0")),
             "lsm303d": lambda: Lsm303dDriver(p, self.spi_handle("lsm303d")),
             "ms5611": lambda: Ms5611Driver(p, self.spi_handle("ms5611")),

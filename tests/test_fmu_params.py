@@ -32,3 +32,16 @@ def test_corrupted_fram_gives_defaults_and_says_so(tmp_path):
     assert errors and "corrupt" in errors[0] and "defaults loaded" in errors[0]
     assert b.ctl_shell("param get SDLOG_PROFILE")[1].strip() == "1"  # the default
     assert b.ctl_shell("ver all")[0] == 0  # and the board runs on
+
+
+def test_the_mpu6000_reads_its_fifo_at_imu_gyro_ratemax(tmp_path):
+    # As PX4's gyro front end hands IMU_GYRO_RATEMAX to the driver's ConfigureSampleRate: the
+    # default 400 Hz is 20 records every 2.5 ms; 1000 Hz (a reboot later) eight every 1 ms.
+    b = boot(tmp_path)
+    status = b.ctl_shell("mpu6000 status")[1]
+    assert "FIFO read every 2500 us (400.0 Hz, 20 records)" in status, status
+    assert b.ctl_shell("param set IMU_GYRO_RATEMAX 1000")[0] == 0
+    assert b.ctl_shell("param save")[0] == 0
+    b.devices["fram"].close()
+    again = boot(tmp_path)
+    assert "FIFO read every 1000 us (1000.0 Hz, 8 records)" in again.ctl_shell("mpu6000 status")[1]

@@ -74,13 +74,15 @@ class DriverModule(ModuleBase):
 
 class Mpu6000Module(DriverModule):
     NAME = "mpu6000"
-    DESCRIPTION = "InvenSense MPU6000 IMU on SPI1 (accel + gyro, 8 kHz FIFO, 1 kHz output)"
+    DESCRIPTION = ("InvenSense MPU6000 IMU on SPI1 (accel + gyro, 8 kHz FIFO read at "
+                   "IMU_GYRO_RATEMAX)")
 
     def make_driver(self) -> Any:
-        from firmware.drivers.imu.mpu6000 import Mpu6000Driver
+        from firmware.drivers.imu.mpu6000 import Mpu6000Driver, gyro_rate_limit
 
         return Mpu6000Driver(self.platform, self.hw.spi_handle("mpu6000"),
-                             drdy_pin=self.hw.gpio.pin("PD15"))
+                             drdy_pin=self.hw.gpio.pin("PD15"),
+                             max_rate_hz=gyro_rate_limit(getattr(self.system, "params", None)))
 
 
 class L3gd20Module(DriverModule):

@@ -15,7 +15,13 @@ from board.gpio import Gpio
 from board.kernel import NS_PER_MS, NS_PER_S, Kernel
 from board.spi import SpiBus
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId
-from firmware.drivers.imu.mpu6000 import DRV_IMU_DEVTYPE_MPU6000, FIFO_READ, Mpu6000Driver
+from firmware.drivers.imu.mpu6000 import (
+    DRV_IMU_DEVTYPE_MPU6000,
+    FIFO_READ,
+    Mpu6000Driver,
+    fifo_records_per_read,
+    gyro_rate_limit,
+)
 from firmware.platform import Platform
 from firmware.platform.workqueue import WorkItem
 from peripherals.errors import rng_for
@@ -28,7 +34,8 @@ G0 = 9.80665
 class Rig:
     """FMUv2's SPI1 with the MPU-6000 on PC2 and its INT on PD15, booted for 100 ms."""
 
-    def __init__(self, pin: bool = True, rotation: int = 0, **chip_kw) -> None:
+    def __init__(self, pin: bool = True, rotation: int = 0, max_rate_hz: float = 1000.0,
+                 **chip_kw) -> None:
         self.kernel = k = Kernel("fmu")
         self.platform = Platform(k)
         self.env = Environment()
@@ -39,7 +46,8 @@ class Rig:
         bus = SpiBus(k, "spi1")
         bus.attach("PC2", self.chip)
         self.driver = Mpu6000Driver(self.platform, bus.device("PC2", mode=3),
-                                    drdy_pin=self.pin, rotation=rotation)
+                                    drdy_pin=self.pin, rotation=rotation,
+                                    max_rate_hz=max_rate_hz)
         self.gyro: list = []
         self.accel: list = []
         gnode = self.platform.orb.node("sensor_gyro", 0)
@@ -94,6 +102,37 @@ def test_still_board_gravity_zero_rate_at_1khz() -> None:
     assert {b - a for a, b in pairwise(stamps)} == {1000}
     assert rig.driver.perf_bad_transfer.events == rig.driver.perf_bad_register.events == 0
     assert "started" in rig.dmesg()
+
+
+@pytest.mark.parametrize(("rate_hz", "records"), [
+    (400, 20), (1000, 8), (800, 12), (333, 24), (250, 32), (100, 32), (2000, 4), (4000, 4),
+    (0, 8)])
+def test_fifo_read_interval_follows_px4s_rule(rate_hz: float, records: int) -> None:
+    # PX4's ConfigureSampleRate: a multiple of 500 us (roundf, halves up), at most 32 records;
+    # 0 is 1 kHz. 800 Hz is 2.5 steps of 500 us: rounded up to 1.5 ms.
+    assert fifo_records_per_read(rate_hz) == records
+
+
+def test_a_negative_rate_limit_is_refused() -> None:
+    with pytest.raises(ValueError, match="positive"):
+        fifo_records_per_read(-400)
+
+
+def test_the_rate_limit_comes_from_imu_gyro_ratemax() -> None:
+    assert gyro_rate_limit({"IMU_GYRO_RATEMAX": 250}) == 250.0
+    assert gyro_rate_limit({}) == 0.0 and gyro_rate_limit(None) == 0.0
+
+
+def test_reads_twenty_records_every_2500_us_at_400_hz() -> None:
+    rig = Rig(max_rate_hz=400).started()
+    rig.run_s(1.0)
+    assert len(rig.gyro) == pytest.approx(400, rel=0.01)
+    assert {m.samples for m in rig.gyro} == {20}
+    stamps = [m.timestamp_sample for m in rig.gyro]
+    assert {b - a for a, b in pairwise(stamps)} == {2500}
+    assert mean(rig.accel, "z") == pytest.approx(-G0, abs=0.1)
+    assert rig.driver.perf_bad_transfer.events == 0  # 2.5 accel readings per read are fine
+    assert "20 records" in rig.driver.status()
 
 
 def test_rotating_board() -> None:

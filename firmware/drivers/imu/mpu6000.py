@@ -8,10 +8,13 @@ State machine (each step ends by scheduling the next run on ``wq:SPI1``)::
 
 * The chip runs at its reset sample rate, 8 kHz (DLPF_CFG 0, SMPLRT_DIV 0), +-2000 deg/s and
   +-16 g, accel and gyro into the FIFO (12-byte records), INT active low on data ready.
-* Publication rate: ``sensor_gyro`` and ``sensor_accel`` are published once per
-  ``8000 / publish_rate_hz`` samples (default 1 kHz: eight 8 kHz FIFO records averaged,
-  ``samples = 8``). With a DRDY pin the falling edge of every 8th interrupt schedules the FIFO
-  read; without one the driver polls every 1 ms. The configured rate is that publication rate.
+* Publication rate: PX4's ``ConfigureSampleRate`` with the gyro's rate limit (``max_rate_hz``;
+  the board passes IMU_GYRO_RATEMAX, default 400 Hz, as PX4's gyro front end does): the FIFO
+  read interval is the limit's interval rounded to a multiple of 500 µs (2 kHz at most), in
+  whole 8 kHz records, at most 32 of them. 400 Hz gives 20 records every 2.5 ms; 1 kHz eight
+  every 1 ms. Each read publishes ``sensor_gyro`` and ``sensor_accel`` once, the records
+  averaged (``samples`` says how many). With a DRDY pin the falling edge of every N-th
+  interrupt schedules the FIFO read; without one the driver polls at that interval.
 * Register access at 1 MHz; FIFO count, FIFO data and temperature at 20 MHz requested.
 * Health, as a PX4 driver would see it: one configuration register (or WHO_AM_I) is re-read
   every 10 ms and any mismatch triggers a full reset (perf ``bad register``); FIFO count or data
@@ -38,7 +41,8 @@ from firmware.drivers.imu import rotation_matrix
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
 
-__all__ = ["DRV_IMU_DEVTYPE_MPU6000", "PRODUCT_IDS", "Mpu6000Driver"]
+__all__ = ["DRV_IMU_DEVTYPE_MPU6000", "PRODUCT_IDS", "Mpu6000Driver", "fifo_records_per_read",
+           "gyro_rate_limit"]
 
 DRV_IMU_DEVTYPE_MPU6000: Final = 0x21
 WHO_AM_I_VALUE: Final = 0x68
@@ -82,6 +86,9 @@ SAMPLE_RATE_HZ: Final = 8000
 FIFO_SIZE: Final = 1024
 RECORD_BYTES: Final = 12
 MAX_RECORDS: Final = FIFO_SIZE // RECORD_BYTES
+RECORD_US: Final = 1_000_000 // SAMPLE_RATE_HZ
+#: Records per read at most: PX4's ``sensor_gyro_fifo`` holds 32 samples.
+FIFO_MAX_SAMPLES: Final = 32
 ACCEL_SCALE: Final = 9.80665 / 2048.0
 GYRO_SCALE: Final = math.radians(2000.0 / 32768.0)
 REG_CLOCK_HZ: Final = 1_000_000
@@ -97,28 +104,45 @@ CONFIGURE: Final = "configure"
 FIFO_READ: Final = "fifo_read"
 
 
+def gyro_rate_limit(params: Any) -> float:
+    """IMU_GYRO_RATEMAX from a parameter set, as PX4's gyro front end reads it for its driver
+    (0, which means 1 kHz, where the set has no such parameter or there is no set)."""
+    return float(params.get("IMU_GYRO_RATEMAX", 0)) if params is not None else 0.0
+
+
+def fifo_records_per_read(max_rate_hz: float) -> int:
+    """PX4's MPU6000 ``ConfigureSampleRate``: 8 kHz records per FIFO read for a gyro rate
+    limit (0 means 1 kHz). The interval is rounded to a multiple of four records (500 µs, so
+    2 kHz at most), halves away from zero as ``roundf`` does, and capped at 32 records."""
+    if max_rate_hz < 0:
+        raise ValueError(f"gyro rate limit must be positive, got {max_rate_hz}")
+    rate = max_rate_hz or 1000.0
+    step = 4 * RECORD_US
+    interval = max(math.floor(1e6 / rate / step + 0.5) * step, step)
+    return min(interval // RECORD_US, FIFO_MAX_SAMPLES)
+
+
 class Mpu6000Driver(SensorDriver):
     """One MPU-6000 on an SPI chip select, publishing ``sensor_accel`` and ``sensor_gyro``.
 
     ``drdy_pin`` is the board pin wired to INT (PD15 on FMUv2; None: poll). ``address`` goes
     into the device id (the chip-select index). ``rotation`` is the PX4 mounting rotation
-    applied to the data before publication.
+    applied to the data before publication. ``max_rate_hz`` is the gyro's rate limit that sets
+    the FIFO read interval (:func:`fifo_records_per_read`; IMU_GYRO_RATEMAX on a board).
     """
 
     def __init__(self, platform: Platform, spi_handle: Any, drdy_pin: Any | None = None,
                  bus: int = 1, rotation: int | str = 0, name: str = "mpu6000",
-                 address: int = 0, publish_rate_hz: int = 1000) -> None:
+                 address: int = 0, max_rate_hz: float = 1000.0) -> None:
         super().__init__(platform, name, "wq:SPI1")
-        if publish_rate_hz <= 0 or SAMPLE_RATE_HZ % publish_rate_hz:
-            raise ValueError(f"{name}: publish_rate_hz must divide {SAMPLE_RATE_HZ}, "
-                             f"got {publish_rate_hz}")
+        records = fifo_records_per_read(max_rate_hz)
         self.spi = spi_handle
         self.drdy_pin = drdy_pin
         self.rotation = rotation_matrix(rotation)
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_IMU_DEVTYPE_MPU6000).value
-        self.publish_rate_hz = publish_rate_hz
-        self.samples_per_publish = SAMPLE_RATE_HZ // publish_rate_hz
-        self.publish_interval_us = 1_000_000 // publish_rate_hz
+        self.samples_per_publish = records
+        self.publish_interval_us = records * RECORD_US
+        self.publish_rate_hz = 1e6 / self.publish_interval_us
         perf = platform.perf
         self.perf_fifo_empty = perf.alloc(PC_COUNT, f"{name}: FIFO empty")
         self.perf_fifo_overflow = perf.alloc(PC_COUNT, f"{name}: FIFO overflow")
@@ -209,7 +233,9 @@ class Mpu6000Driver(SensorDriver):
     def status(self) -> str:
         pid = "?" if self.product_id is None else f"0x{self.product_id:02X}"
         extra = [(f"  state {self.state}, product id {pid}, {self.temperature:.2f} degC, "
-                  f"{self.publications} publications, error count {self.error_count}")]
+                  f"{self.publications} publications, error count {self.error_count}"),
+                 (f"  FIFO read every {self.publish_interval_us} us ({self.publish_rate_hz:.1f} Hz,"
+                  f" {self.samples_per_publish} records)")]
         extra += ["  " + pc.summary() for pc in (
             self.perf_fifo_empty, self.perf_fifo_overflow, self.perf_fifo_reset,
             self.perf_drdy_timeout, self.perf_stuck, self.perf_reset)]

@@ -5,8 +5,9 @@ It does in one work item what PX4 spreads over ``sensors``, ``VehicleAngularVelo
 item run is the unit of cost:
 
 * the item wakes on the *selected* gyro (callback subscription, moved with the selection) once
-  ``round(IMU_GYRO_RATEMAX interval / gyro interval)`` samples are queued (PX4's rule: 3 for
-  the MPU6000's 1 kHz at the default 400 Hz), and from a 10 ms HRT watchdog only if no run
+  ``round(IMU_GYRO_RATEMAX interval / gyro interval)`` samples are queued (PX4's rule: one
+  for the MPU6000, whose FIFO is read at the same limit, three for a 1 kHz gyro at the
+  default 400 Hz), and from a 10 ms HRT watchdog only if no run
   happened for 10 ms (a silent gyro is still noticed);
 * each run walks the gyro and accelerometer queues sample by sample: calibration, rotation,
   the IMU_GYRO_CUTOFF low-pass and the derivative at the full raw rate;
