@@ -115,7 +115,7 @@ def fifo_records_per_read(max_rate_hz: float) -> int:
     limit (0 means 1 kHz). The interval is rounded to a multiple of four records (500 µs, so
     2 kHz at most), halves away from zero as ``roundf`` does, and capped at 32 records."""
     if max_rate_hz < 0:
-        raise ValueError(f"gyro rate limit must be positive, got {max_rate_hz}")
+        raise ValueError(f"gyro rate limit must be positive (or 0 for 1 kHz), got {max_rate_hz}")
     rate = max_rate_hz or 1000.0
     step = 4 * RECORD_US
     interval = max(math.floor(1e6 / rate / step + 0.5) * step, step)
