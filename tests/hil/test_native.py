@@ -67,11 +67,16 @@ def test_compiled_list_covers_the_hot_path() -> None:
         assert hot in native.COMPILED
 
 
-def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> dict:
+def _child_env(extra: dict[str, str]) -> dict[str, str]:
+    """This environment without a tier choice, then ``extra`` (which tier the child imports)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "HIL_PURE")}
-    env.update(env_extra)
+    return {**env, **extra}
+
+
+def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> dict:
     out = subprocess.run([sys.executable, "-m", "hil.native", str(tmp / name), str(seconds)],
-                         cwd=tmp, env=env, capture_output=True, text=True, timeout=900, check=False)
+                         cwd=tmp, env=_child_env(env_extra), capture_output=True, text=True,
+                         timeout=900, check=False)
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -109,7 +114,10 @@ def test_cli_native_commands(argv: list[str], capsys) -> None:
 # and prints what the decoder output, as one JSON line; run compiled and pure, it must agree.
 _DSM_SCRIPT = """
 import json
+import ioproc.rc.dsm
 from ioproc.rc.dsm import DsmDecoder, dsm_word, encode_dsm_frame
+
+print(ioproc.rc.dsm.__file__)
 
 out = []
 for bits in (11, 10):
@@ -136,13 +144,12 @@ def test_compiled_dsm_decoder_matches_pure(tmp_path: Path) -> None:
     assert "ioproc/rc/dsm.py" in native.COMPILED
     if native.status()[0] != "fresh":
         native.build()
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "HIL_PURE")}
     runs = {}
     for name, extra in (("compiled", {"PYTHONPATH": str(native.native_dir())}),
                         ("pure", {"PYTHONPATH": str(native.ROOT)})):
-        res = subprocess.run([sys.executable, "-c", "import ioproc.rc.dsm as m; print(m.__file__)"
-                              + "\n" + _DSM_SCRIPT], cwd=tmp_path, env={**env, **extra},
-                             capture_output=True, text=True, timeout=300, check=False)
+        res = subprocess.run([sys.executable, "-c", _DSM_SCRIPT], cwd=tmp_path,
+                             env=_child_env(extra), capture_output=True, text=True, timeout=300,
+                             check=False)
         assert res.returncode == 0, res.stderr[-3000:]
         where, line = res.stdout.strip().splitlines()[-2:]
         assert where.endswith(".py") == (name == "pure"), where

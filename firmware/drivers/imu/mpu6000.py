@@ -142,7 +142,6 @@ class Mpu6000Driver(SensorDriver):
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_IMU_DEVTYPE_MPU6000).value
         self.samples_per_publish = records
         self.publish_interval_us = records * RECORD_US
-        self.publish_rate_hz = 1e6 / self.publish_interval_us
         perf = platform.perf
         self.perf_fifo_empty = perf.alloc(PC_COUNT, f"{name}: FIFO empty")
         self.perf_fifo_overflow = perf.alloc(PC_COUNT, f"{name}: FIFO overflow")
@@ -229,6 +228,11 @@ class Mpu6000Driver(SensorDriver):
             self._attached = False
         self.state = RESET
         super().stop()
+
+    @property
+    def publish_rate_hz(self) -> float:
+        """FIFO reads (and publications) per second."""
+        return 1e6 / self.publish_interval_us
 
     def status(self) -> str:
         pid = "?" if self.product_id is None else f"0x{self.product_id:02X}"
