@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint clean native
+.PHONY: demo test fuzz bench lint clean native
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,13 @@ demo: native
 test: native
 	$(PY) -m pytest -q -n auto -m "not paced"
 	$(PY) -m pytest -q -m paced
+
+# The long fuzz run: every fuzz target (tests/fuzzing.py) with FUZZ_SCALE times the budget it
+# has in `make test`, in one process so that hypothesis prints per target how many inputs it
+# tried and how long that took.
+FUZZ_SCALE ?= 100
+fuzz: $(STAMP)
+	HIL_FUZZ_SCALE=$(FUZZ_SCALE) $(PY) -m pytest -q -m fuzz -p no:cacheprovider --hypothesis-show-statistics
 
 bench: $(STAMP)
 	$(VENV)/bin/hil bench

@@ -1,0 +1,49 @@
+"""The budget of the property-based tests that feed outside input to a decoder or parser.
+
+Every test that fuzzes an entry point for outside bytes or text (RC decoders, the PX4IO
+protocol, MAVLink, BSON and the FRAM parameter store, the shell, the scenario loader, ...)
+is decorated with ``@fuzz(examples)``. That marks it ``fuzz`` and gives hypothesis a budget:
+
+- in ``make test`` each target tries ``examples`` inputs, so that all of them together take a
+  few tens of seconds;
+- ``make fuzz`` (the long run) multiplies every budget by ``HIL_FUZZ_SCALE`` and prints
+  hypothesis's statistics: how many inputs each target tried, how many were rejected by the
+  strategy, and how long it took.
+
+No deadline: the boards are slow to build, and a slow example is not a failure. Health checks
+about slow or large data are off for the same reason; the others (a strategy that filters out
+everything, say) stay on.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Callable, TypeVar
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+__all__ = ["SCALE", "fuzz"]
+
+#: The long run's multiplier (``make fuzz`` sets it); 1 in ``make test``.
+SCALE: float = float(os.environ.get("HIL_FUZZ_SCALE", "1"))
+
+T = TypeVar("T", bound=Callable[..., object])
+
+
+def fuzz(examples: int) -> Callable[[T], T]:
+    """Mark a hypothesis test as a fuzz target with a budget of ``examples`` inputs per run."""
+    if examples < 1:
+        raise ValueError("a fuzz target needs at least one example")
+
+    def wrap(test: T) -> T:
+        budget = settings(
+            max_examples=max(1, round(examples * SCALE)),
+            deadline=None,
+            suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                                   HealthCheck.large_base_example,
+                                   HealthCheck.function_scoped_fixture],
+        )
+        return pytest.mark.fuzz(budget(test))  # type: ignore[no-any-return]
+
+    return wrap
