@@ -7,12 +7,16 @@ the allowed values before anything boots. The format is documented in docs/fault
 
 from __future__ import annotations
 
+import math
 import os
+import reprlib
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import yaml
 
+from firmware.platform.params import ParamDef, ParamError
 from hil.faults import CATALOGUE, FaultError, get_kind
 from hil.scenarios.conditions import Condition, ConditionError, parse_condition
 from hil.scenarios.observables import is_observable
@@ -35,10 +39,37 @@ GCS_MODES = {"manual": (1, 0), "altitude": (2, 0), "position": (3, 0), "hold": (
              "stabilized": (7, 0), "acro": (5, 0)}
 EXPECT_KINDS = ("within", "eventually", "always", "never")
 RC_KINDS = ("sbus", "dsm", "ppm", None)
+#: bounds of places and heights a scenario names (finite, and far beyond the world's use)
+MAX_ALT_M = 10_000.0
+MAX_DISTANCE_M = 100_000.0
+#: seeds are handed to numpy's generators, which take 0..2**32-1
+MAX_SEED = (1 << 32) - 1
+
+
+#: longest virtual time a scenario may name (a day): a bound that keeps times finite
+MAX_SECONDS = 86_400.0
+#: deepest nesting of a document (the real ones nest 6 levels): PyYAML's composer and the
+#: condition parser recurse, so depth is refused before it reaches Python's recursion limit
+MAX_DEPTH = 48
+#: most values a document may expand to, aliases counted at every use (the library's largest
+#: file has a few hundred): an alias bomb ("billion laughs") is refused before it is walked
+MAX_NODES = 20_000
+#: bytes of a scenario file (the library's largest is a few kB)
+MAX_FILE_BYTES = 1 << 20
+#: how much of an offending value an error message shows
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlist = _REPR.maxdict = _REPR.maxtuple = _REPR.maxset = 6
+_REPR.maxlevel = 3
 
 
 class ScenarioError(ValueError):
     """A scenario that cannot be loaded or run as written (the message says where)."""
+
+
+def _r(v: Any) -> str:
+    """A value for an error message, cut short: a fuzzed or aliased value may be huge."""
+    return _REPR.repr(v)
 
 
 @dataclass
@@ -115,17 +146,55 @@ class Scenario:
         return {s.arg["kind"] for s in self.timeline if s.kind == "fault"}
 
 
-def _num(v: Any, where: str, *, positive: bool = False, allow_zero: bool = True) -> float:
+def _num(v: Any, where: str, *, lo: float = 0.0, hi: float = MAX_SECONDS,
+         what: str = "a number of seconds") -> float:
+    """A finite number in [lo, hi]: NaN, infinities and huge integers would crash the run."""
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ScenarioError(f"{where}: expected a number of seconds, got {v!r}")
-    if v < 0 or (positive and v == 0 and not allow_zero):
-        raise ScenarioError(f"{where}: must be positive, got {v!r}")
+        raise ScenarioError(f"{where}: expected {what}, got {_r(v)}")
+    if not lo <= v <= hi:  # NaN fails both tests; a huge int compares without overflow
+        raise ScenarioError(f"{where}: {_r(v)} is outside {lo:g}..{hi:g}")
     return float(v)
+
+
+def _shape(data: Any) -> None:
+    """Refuse a document too deep, too large once its aliases are expanded, or referring to
+    itself (YAML anchors can build cycles), before anything walks it recursively.
+
+    Works iteratively with the expanded size of every container memoised by identity, so a
+    shared (aliased) sub-tree is measured once however often it is used.
+    """
+    size: dict[int, int] = {}
+    on_path: set[int] = set()
+    stack: list[tuple[Any, int, bool]] = [(data, 1, False)]
+    while stack:
+        node, depth, done = stack.pop()
+        if not isinstance(node, (dict, list, tuple)):
+            continue
+        key = id(node)
+        children = list(node.keys()) + list(node.values()) if isinstance(node, dict) \
+            else list(node)
+        if done:
+            on_path.discard(key)
+            size[key] = 1 + sum(size.get(id(c), 1) for c in children)
+            if size[key] > MAX_NODES:
+                raise ScenarioError(f"the document expands to more than {MAX_NODES} values "
+                                    f"(YAML aliases used too often?)")
+            continue
+        if key in size:
+            continue
+        if key in on_path:
+            raise ScenarioError("the document refers to itself (a YAML alias inside its own "
+                                "anchor)")
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"the document nests deeper than {MAX_DEPTH} levels")
+        on_path.add(key)
+        stack.append((node, depth, True))
+        stack.extend((c, depth + 1, False) for c in children)
 
 
 def _mapping(v: Any, where: str) -> dict:
     if not isinstance(v, dict):
-        raise ScenarioError(f"{where}: expected a mapping, got {v!r}")
+        raise ScenarioError(f"{where}: expected a mapping, got {_r(v)}")
     return v
 
 
@@ -162,6 +231,11 @@ def _fault(v: Any, where: str) -> dict[str, Any]:
         full = kind.check(target, params)
     except FaultError as exc:
         raise ScenarioError(f"{where}: {exc}") from None
+    for pname, value in params.items():
+        _fault_param(value, kind.params[pname], f"{where}.params.{pname}")
+    name = d.get("name")
+    if name is not None and (not isinstance(name, str) or not name):
+        raise ScenarioError(f"{where}.name: an event name, got {_r(name)}")
     duration = d.get("duration")
     if duration is not None:
         duration = _num(duration, f"{where}.duration")
@@ -172,7 +246,34 @@ def _fault(v: Any, where: str) -> dict[str, Any]:
     if duration is not None and until is not None:
         raise ScenarioError(f"{where}: give a duration or an until, not both")
     return {"kind": kind.name, "target": target, "params": full, "duration": duration,
-            "until": until, "name": d.get("name")}
+            "until": until, "name": name}
+
+
+#: largest magnitude of a fault parameter (a bias, a rate, a count): finite and far beyond use
+MAX_FAULT_PARAM = 1e9
+
+
+def _fault_param(value: Any, default: Any, where: str) -> None:
+    """A fault parameter must have its default's type (numbers finite), as the fault's start
+    function will use it that way in the middle of the run."""
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise ScenarioError(f"{where}: expected text, got {_r(value)}")
+    elif isinstance(default, tuple):
+        if not isinstance(value, (list, tuple)) or len(value) != len(default):
+            raise ScenarioError(f"{where}: expected a list of {len(default)} numbers, "
+                                f"got {_r(value)}")
+        for i, x in enumerate(value):
+            _num(x, f"{where}[{i}]", lo=-MAX_FAULT_PARAM, hi=MAX_FAULT_PARAM, what="a number")
+    elif isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ScenarioError(f"{where}: expected true or false, got {_r(value)}")
+    elif isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(f"{where}: expected an integer, got {_r(value)}")
+        _num(value, where, lo=-MAX_FAULT_PARAM, hi=MAX_FAULT_PARAM, what="an integer")
+    elif isinstance(default, float):
+        _num(value, where, lo=-MAX_FAULT_PARAM, hi=MAX_FAULT_PARAM, what="a number")
 
 
 def _pilot(v: Any, where: str) -> dict[str, Any]:
@@ -190,17 +291,18 @@ def _pilot(v: Any, where: str) -> dict[str, Any]:
         for k, x in val.items():
             lo = 0.0 if k == "throttle" else -1.0
             if isinstance(x, bool) or not isinstance(x, (int, float)) or not lo <= x <= 1.0:
-                raise ScenarioError(f"{where}.sticks.{k}: {x!r} outside {lo:g}..1")
+                raise ScenarioError(f"{where}.sticks.{k}: {_r(x)} outside {lo:g}..1")
     elif act == "switch":
         _mapping(val, f"{where}.switch")
         for k, x in val.items():
-            if not isinstance(x, int) or not 0 <= x <= 2:
-                raise ScenarioError(f"{where}.switch.{k}: position {x!r} not 0, 1 or 2")
+            if isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 2:
+                raise ScenarioError(f"{where}.switch.{k}: position {_r(x)} not 0, 1 or 2")
     elif act == "channel":
         _mapping(val, f"{where}.channel")
         for k, x in val.items():
-            if not isinstance(k, int) or not isinstance(x, (int, float)) or not 800 <= x <= 2200:
-                raise ScenarioError(f"{where}.channel: {k!r}: {x!r} must be channel number: "
+            if isinstance(k, bool) or not isinstance(k, int) or isinstance(x, bool) \
+                    or not isinstance(x, (int, float)) or not 800 <= x <= 2200:
+                raise ScenarioError(f"{where}.channel: {_r(k)}: {_r(x)} must be channel number: "
                                     f"us in 800..2200")
     elif act == "safety":
         val = _num(val, f"{where}.safety")  # how long the button is held
@@ -215,13 +317,14 @@ def _gcs(v: Any, where: str) -> dict[str, Any]:
         raise ScenarioError(f"{where}: one GCS command per step ({', '.join(GCS_COMMANDS)})")
     (cmd, arg), = d.items()
     if cmd not in GCS_COMMANDS:
-        raise ScenarioError(f"{where}: unknown GCS command {cmd!r} (known: "
+        raise ScenarioError(f"{where}: unknown GCS command {_r(cmd)} (known: "
                             f"{', '.join(GCS_COMMANDS)})")
     if cmd == "takeoff":
-        arg = _num(arg if arg is not None else 5.0, f"{where}.takeoff")
+        arg = _num(arg if arg is not None else 5.0, f"{where}.takeoff", hi=MAX_ALT_M,
+                   what="an altitude in m")
     elif cmd == "mode":
         if not isinstance(arg, str) or arg.lower() not in GCS_MODES:
-            raise ScenarioError(f"{where}.mode: {arg!r} is not one of "
+            raise ScenarioError(f"{where}.mode: {_r(arg)} is not one of "
                                 f"{', '.join(GCS_MODES)}")
         arg = arg.lower()
     elif cmd == "mission":
@@ -229,11 +332,13 @@ def _gcs(v: Any, where: str) -> dict[str, Any]:
             raise ScenarioError(f"{where}.mission: a list of [north_m, east_m, alt_m] "
                                 f"waypoints relative to home")
         for i, wp in enumerate(arg):
-            if (not isinstance(wp, list) or len(wp) != 3
-                    or not all(isinstance(x, (int, float)) for x in wp)):
-                raise ScenarioError(f"{where}.mission[{i}]: [north_m, east_m, alt_m], got {wp!r}")
+            if not isinstance(wp, list) or len(wp) != 3:
+                raise ScenarioError(f"{where}.mission[{i}]: [north_m, east_m, alt_m], got {_r(wp)}")
+            for j, x in enumerate(wp):
+                _num(x, f"{where}.mission[{i}][{j}]", lo=-MAX_DISTANCE_M, hi=MAX_DISTANCE_M,
+                     what="metres")
     elif cmd == "param":
-        _mapping(arg, f"{where}.param")
+        arg = _params(arg, f"{where}.param")
     elif arg is not None:
         raise ScenarioError(f"{where}.{cmd} takes no value")
     return {"cmd": cmd, "arg": arg}
@@ -296,14 +401,14 @@ def _step(i: int, raw: Any) -> Step:
     elif kind == "hover":
         val = val if isinstance(val, dict) else {"alt": val if val is not None else 5.0}
         _only(val, {"alt", "within"}, w)
-        arg = {"alt": _num(val.get("alt", 5.0), f"{w}.alt"),
+        arg = {"alt": _num(val.get("alt", 5.0), f"{w}.alt", hi=MAX_ALT_M, what="an altitude in m"),
                "within": _num(val.get("within", 90), f"{w}.within")}
     else:  # settle
         arg = {"within": _num(val, w)}
     at = d.get("at")
     name = d.get("name")
-    if name is not None and not isinstance(name, str):
-        raise ScenarioError(f"{where}.name: an event name")
+    if name is not None and (not isinstance(name, str) or not name):
+        raise ScenarioError(f"{where}.name: an event name, got {_r(name)}")
     if kind == "mark":
         name = arg
     return Step(kind, arg, _num(at, f"{where}.at") if at is not None else None, name, where)
@@ -339,27 +444,89 @@ def scenario_from_dict(data: Any, source: str = "<dict>") -> Scenario:
         raise ScenarioError(f"{source}: {exc}") from None
 
 
+@lru_cache(maxsize=1)
+def _param_defs() -> dict[str, ParamDef]:
+    """Every declared parameter (the FMU's system parameters and every module's), by name."""
+    from hil.params_doc import all_param_defs
+
+    return {d.name: d for d in all_param_defs()}
+
+
+def _params(v: Any, where: str) -> dict[str, int | float]:
+    """``NAME: value`` pairs converted as the FMU will store them (the parameter layer's own
+    conversion, float32 or int32), so a value the board would refuse at boot (an unknown name,
+    1e39, NaN, a fraction for an integer) is a load error instead."""
+    out: dict[str, int | float] = {}
+    defs = _param_defs()
+    for k, x in _mapping(v, where).items():
+        d = defs.get(k) if isinstance(k, str) else None
+        if d is None:
+            raise ScenarioError(f"{where}: unknown parameter {_r(k)}")
+        try:
+            d.coerce(x)
+        except ParamError as exc:
+            raise ScenarioError(f"{where}.{k}: {exc}") from None
+        out[k] = x
+    return out
+
+
+def _text(d: dict, key: str, default: str = "") -> str:
+    v = d.get(key)
+    if v is None:
+        return default
+    if not isinstance(v, (str, int, float)) or isinstance(v, bool):
+        raise ScenarioError(f"{key}: expected text, got {_r(v)}")
+    return str(v).strip()
+
+
+def _flag(d: dict, key: str, default: bool) -> bool:
+    v = d.get(key, default)
+    if not isinstance(v, bool):
+        raise ScenarioError(f"{key}: true or false, got {_r(v)}")
+    return v
+
+
+def _initial(v: Any) -> dict[str, Any]:
+    initial = _mapping(v, "initial")
+    _only(initial, INITIAL_KEYS, "initial")
+    bounds = {"heading_deg": (-360.0, 360.0), "lat_deg": (-90.0, 90.0),
+              "lon_deg": (-180.0, 180.0), "alt_m": (-500.0, MAX_ALT_M)}
+    for k, (lo, hi) in bounds.items():
+        if k in initial:
+            _num(initial[k], f"initial.{k}", lo=lo, hi=hi, what="a number")
+    if "sticks" in initial:
+        sticks = _mapping(initial["sticks"], "initial.sticks")
+        _only(sticks, {"roll", "pitch", "yaw", "throttle"}, "initial.sticks")
+        for k, x in sticks.items():
+            _num(x, f"initial.sticks.{k}", lo=0.0 if k == "throttle" else -1.0, hi=1.0,
+                 what="a stick position")
+    if "tx_on" in initial and not isinstance(initial["tx_on"], bool):
+        raise ScenarioError(f"initial.tx_on: true or false, got {_r(initial['tx_on'])}")
+    return dict(initial)
+
+
 def _from_dict(data: Any, source: str) -> Scenario:
+    _shape(data)
     d = _mapping(data, "scenario")
     _only(d, TOP_KEYS, "scenario")
-    name = d.get("name") or os.path.splitext(os.path.basename(source))[0]
+    name = _text(d, "name") or os.path.splitext(os.path.basename(source))[0]
     seed = d.get("seed", 1)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ScenarioError(f"seed: a non-negative integer, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ScenarioError(f"seed: an integer 0..{MAX_SEED}, got {_r(seed)}")
     rc = d.get("rc", "sbus")
-    if rc not in RC_KINDS:
-        raise ScenarioError(f"rc: one of sbus, dsm, ppm or null, got {rc!r}")
-    params = _mapping(d.get("params") or {}, "params")
-    for k, v in params.items():
-        if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ScenarioError(f"params: {k!r}: {v!r} is not NAME: number")
-    initial = _mapping(d.get("initial") or {}, "initial")
-    _only(initial, INITIAL_KEYS, "initial")
+    if not (rc is None or isinstance(rc, str)) or rc not in RC_KINDS:
+        raise ScenarioError(f"rc: one of sbus, dsm, ppm or null, got {_r(rc)}")
+    airframe = d.get("airframe", 4011)
+    if isinstance(airframe, bool) or not isinstance(airframe, int):
+        raise ScenarioError(f"airframe: an airframe number (SYS_AUTOSTART), got {_r(airframe)}")
+    _params({"SYS_AUTOSTART": airframe}, "airframe")
+    params = _params(d.get("params") or {}, "params")
+    initial = _initial(d.get("initial") or {})
     nodes = d.get("uavcan_nodes") or []
     if not isinstance(nodes, list) or not all(
             isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 125 for n in nodes) \
             or len(set(nodes)) != len(nodes):
-        raise ScenarioError(f"uavcan_nodes: a list of distinct node IDs 1..125, got {nodes!r}")
+        raise ScenarioError(f"uavcan_nodes: a list of distinct node IDs 1..125, got {_r(nodes)}")
     events = {}
     for ev, spec in _mapping(d.get("events") or {}, "events").items():
         events[str(ev)] = _cond(spec, f"events.{ev}")
@@ -376,7 +543,7 @@ def _from_dict(data: Any, source: str) -> Scenario:
         if s.kind == "fault":
             started.add(s.event or "")
         if s.kind == "clear" and s.arg not in started:
-            raise ScenarioError(f"{s.where}.clear: no fault named {s.arg!r} started before it")
+            raise ScenarioError(f"{s.where}.clear: no fault named {_r(s.arg)} started before it")
     expect = [_expectation(i, e) for i, e in enumerate(expect_raw)]
     known = {"start"} | set(events)
     for s in timeline:
@@ -385,33 +552,71 @@ def _from_dict(data: Any, source: str) -> Scenario:
     for i, e in enumerate(expect):
         for ev in (e.of, e.until):
             if ev is not None and ev not in known:
-                raise ScenarioError(f"expect[{i}]: unknown event {ev!r} (known: "
+                raise ScenarioError(f"expect[{i}]: unknown event {_r(ev)} (known: "
                                     f"{', '.join(sorted(known))})")
-    sc = Scenario(
-        name=str(name), doc=str(d.get("doc", "")).strip(), seed=seed, rc=rc,
-        airframe=int(d.get("airframe", 4011)), params=dict(params), initial=dict(initial),
-        one_process=bool(d.get("one_process", False)),
-        sample_ms=_num(d.get("sample_ms", 20.0), "sample_ms"),
-        duration_s=_num(d.get("duration", 120.0), "duration"), events=events,
-        timeline=timeline, expect=expect, trace=bool(d.get("trace", True)),
-        reference=str(d.get("reference", "")).strip(),
-        known_failure=str(d.get("known_failure", "") or "").strip(), source=source,
-        uavcan_nodes=tuple(nodes))
-    if not 1.0 <= sc.sample_ms <= 1000.0:
-        raise ScenarioError(f"sample_ms: {sc.sample_ms} outside 1..1000")
-    return sc
+    return Scenario(
+        name=name, doc=_text(d, "doc"), seed=seed, rc=rc,
+        airframe=airframe, params=params, initial=initial,
+        one_process=_flag(d, "one_process", False),
+        sample_ms=_num(d.get("sample_ms", 20.0), "sample_ms", lo=1.0, hi=1000.0,
+                       what="milliseconds"),
+        duration_s=_num(d.get("duration", 120.0), "duration", lo=0.001), events=events,
+        timeline=timeline, expect=expect, trace=_flag(d, "trace", True),
+        reference=_text(d, "reference"), known_failure=_text(d, "known_failure"),
+        source=source, uavcan_nodes=tuple(nodes))
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader with a depth limit: its composer recurses once per level, so a
+    deeply nested document would otherwise end in RecursionError."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested deeper than {MAX_DEPTH} levels",
+                    self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def parse_yaml(text: str, source: str) -> Any:
+    """The YAML document in ``text``, or ScenarioError naming ``source`` and the line.
+
+    Besides its own YAMLError, PyYAML's safe constructors let ValueError, TypeError,
+    AttributeError and OverflowError out on some malformed scalars (``!!timestamp 1``,
+    ``2001-13-45``, ``!!int`` of a huge float); they are the document's fault, so they are
+    reported the same way.
+    """
+    try:
+        return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ScenarioError(f"{source}: not valid YAML{at}: "
+                            f"{getattr(exc, 'problem', None) or exc}") from None
+    except (ValueError, TypeError, AttributeError, OverflowError, RecursionError) as exc:
+        raise ScenarioError(f"{source}: not valid YAML: a value PyYAML cannot build "
+                            f"({type(exc).__name__}: {_r(str(exc))})") from None
 
 
 def load_scenario(path: str) -> Scenario:
     """Load and check a YAML scenario file."""
     try:
-        with open(path, encoding="utf-8") as f:
-            data = yaml.safe_load(f)
+        with open(path, "rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ScenarioError(f"{path}: not valid YAML{at}: "
-                            f"{getattr(exc, 'problem', None) or exc}") from None
-    return scenario_from_dict(data, path)
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    return scenario_from_dict(parse_yaml(text, path), path)

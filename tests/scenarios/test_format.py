@@ -119,3 +119,64 @@ def test_condition_combinations_and_errors():
     for bad in ("", "armed >", "alt_agl_m > high", "motor_us between 1", True, {"both": []}):
         with pytest.raises(ConditionError):
             parse_condition(bad, is_observable)
+
+
+# -- issue 18, defect 7: every malformed file is the loader's error, never a traceback ------
+
+_BASE = "expect: [{never: armed}]\n"
+_BOMB = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9) if i else 'x'}]\n"
+                for i in range(9)) + "name: *l8\n"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("name: " + "[" * 3000 + "]" * 3000 + "\n" + _BASE, "nested deeper than"),  # RecursionError
+    ("events: {e: " + "{not: " * 400 + "armed" + "}" * 400 + "}\n" + _BASE, "nested deeper"),
+    ("expect:\n- always: &c {not: *c}\n", "refers to itself"),            # RecursionError
+    (_BOMB + _BASE, "expands to more than"),                               # billion laughs
+    ("airframe: [1]\n" + _BASE, r"airframe: an airframe number"),          # TypeError
+    ("airframe: .inf\n" + _BASE, r"airframe: an airframe number"),         # OverflowError
+    ("airframe: 99999999999\n" + _BASE, r"airframe.SYS_AUTOSTART: .*int32"),
+    ("name: !!timestamp 1\n" + _BASE, "AttributeError"),                  # PyYAML's own
+    ("name: 2001-13-45\n" + _BASE, "cannot build"),                        # PyYAML ValueError
+    ("duration: .nan\n" + _BASE, r"duration: nan is outside"),
+    ("duration: .inf\n" + _BASE, r"duration: inf is outside"),
+    ("timeline: [{wait: 1.0e+400}]\n" + _BASE, r"timeline\[0\].wait: inf is outside"),
+    ("timeline: [{wait: 1, at: " + "9" * 400 + "}]\n" + _BASE, r"timeline\[0\].at: .* outside"),
+    ("timeline: [{gcs: {mission: [[.nan, 0, 5]]}}]\n" + _BASE, r"mission\[0\]\[0\]: nan"),
+    ("timeline: [{fault: {kind: board.crash, name: [x]}}]\n" + _BASE, r"fault.name: an event"),
+    ("timeline: [{fault: {kind: gps.jump, params: {north_m: .nan}}}]\n" + _BASE,
+     r"params.north_m: nan is outside"),
+    ("params: {MPC_XY_VEL_MAX: 1.0e+39}\n" + _BASE, r"params.MPC_XY_VEL_MAX: "),
+    ("params: {MPC_XY_VEL_MAX: .nan}\n" + _BASE, r"params.MPC_XY_VEL_MAX: .*finite"),
+    ("params: {NAV_RCL_ACT: 2.5}\n" + _BASE, r"params.NAV_RCL_ACT: .*integer"),
+    ("params: {NO_SUCH_PARAM: 1}\n" + _BASE, r"unknown parameter 'NO_SUCH_PARAM'"),
+    ("timeline: [{gcs: {param: {MPC_XY_VEL_MAX: 1.0e+39}}}]\n" + _BASE, r"param.MPC_XY_VEL_MAX"),
+    ("initial: {lat_deg: .nan}\n" + _BASE, r"initial.lat_deg: nan is outside"),
+    ("seed: " + "9" * 30 + "\n" + _BASE, "seed: an integer"),
+    ("doc: [1, 2]\n" + _BASE, "doc: expected text"),
+])
+def test_malformed_scenario_files_are_load_errors_naming_file_and_place(tmp_path, text,
+                                                                         message):
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    with pytest.raises(ScenarioError, match=message) as err:
+        load_scenario(str(p))
+    assert str(err.value).startswith(f"{p}: ")
+    assert len(str(err.value)) < 600  # a bounded message, even for a bomb
+
+
+def test_a_file_that_is_not_utf8_is_a_load_error(tmp_path):
+    p = tmp_path / "bin.yaml"
+    p.write_bytes(b"name: \xff\xfe\n")
+    with pytest.raises(ScenarioError, match="not UTF-8"):
+        load_scenario(str(p))
+
+
+def test_cli_reports_a_bomb_and_a_nan_duration_without_a_traceback(tmp_path, capsys):
+    for i, text in enumerate((_BOMB + _BASE, "duration: .nan\n" + _BASE,
+                              "name: " + "[" * 3000 + "\n")):
+        p = tmp_path / f"bad{i}.yaml"
+        p.write_text(text)
+        assert main(["scenario", str(p)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"hil scenario: {p}: ") and "Traceback" not in err
