@@ -7,17 +7,15 @@ the allowed values before anything boots. The format is documented in docs/fault
 
 from __future__ import annotations
 
-import math
 import os
-import reprlib
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
-import yaml
-
 from firmware.platform.params import ParamDef, ParamError
 from hil.faults import CATALOGUE, FaultError, get_kind
+from hil.scenarios.document import (MAX_FILE_BYTES, ScenarioError, check_shape, parse_yaml,
+                                    short_repr as _r)
 from hil.scenarios.conditions import Condition, ConditionError, parse_condition
 from hil.scenarios.observables import is_observable
 
@@ -48,30 +46,6 @@ MAX_SEED = (1 << 32) - 1
 
 #: longest virtual time a scenario may name (a day): a bound that keeps times finite
 MAX_SECONDS = 86_400.0
-#: deepest nesting of a document (the real ones nest 6 levels): PyYAML's composer and the
-#: condition parser recurse, so depth is refused before it reaches Python's recursion limit
-MAX_DEPTH = 48
-#: most values a document may expand to, aliases counted at every use (the library's largest
-#: file has a few hundred): an alias bomb ("billion laughs") is refused before it is walked
-MAX_NODES = 20_000
-#: bytes of a scenario file (the library's largest is a few kB)
-MAX_FILE_BYTES = 1 << 20
-#: how much of an offending value an error message shows
-_REPR = reprlib.Repr()
-_REPR.maxstring = _REPR.maxother = 60
-_REPR.maxlist = _REPR.maxdict = _REPR.maxtuple = _REPR.maxset = 6
-_REPR.maxlevel = 3
-
-
-class ScenarioError(ValueError):
-    """A scenario that cannot be loaded or run as written (the message says where)."""
-
-
-def _r(v: Any) -> str:
-    """A value for an error message, cut short: a fuzzed or aliased value may be huge."""
-    return _REPR.repr(v)
-
-
 @dataclass
 class Step:
     kind: str                       # one of STEP_KINDS
@@ -154,42 +128,6 @@ def _num(v: Any, where: str, *, lo: float = 0.0, hi: float = MAX_SECONDS,
     if not lo <= v <= hi:  # NaN fails both tests; a huge int compares without overflow
         raise ScenarioError(f"{where}: {_r(v)} is outside {lo:g}..{hi:g}")
     return float(v)
-
-
-def _shape(data: Any) -> None:
-    """Refuse a document too deep, too large once its aliases are expanded, or referring to
-    itself (YAML anchors can build cycles), before anything walks it recursively.
-
-    Works iteratively with the expanded size of every container memoised by identity, so a
-    shared (aliased) sub-tree is measured once however often it is used.
-    """
-    size: dict[int, int] = {}
-    on_path: set[int] = set()
-    stack: list[tuple[Any, int, bool]] = [(data, 1, False)]
-    while stack:
-        node, depth, done = stack.pop()
-        if not isinstance(node, (dict, list, tuple)):
-            continue
-        key = id(node)
-        children = list(node.keys()) + list(node.values()) if isinstance(node, dict) \
-            else list(node)
-        if done:
-            on_path.discard(key)
-            size[key] = 1 + sum(size.get(id(c), 1) for c in children)
-            if size[key] > MAX_NODES:
-                raise ScenarioError(f"the document expands to more than {MAX_NODES} values "
-                                    f"(YAML aliases used too often?)")
-            continue
-        if key in size:
-            continue
-        if key in on_path:
-            raise ScenarioError("the document refers to itself (a YAML alias inside its own "
-                                "anchor)")
-        if depth > MAX_DEPTH:
-            raise ScenarioError(f"the document nests deeper than {MAX_DEPTH} levels")
-        on_path.add(key)
-        stack.append((node, depth, True))
-        stack.extend((c, depth + 1, False) for c in children)
 
 
 def _mapping(v: Any, where: str) -> dict:
@@ -506,7 +444,7 @@ def _initial(v: Any) -> dict[str, Any]:
 
 
 def _from_dict(data: Any, source: str) -> Scenario:
-    _shape(data)
+    check_shape(data)
     d = _mapping(data, "scenario")
     _only(d, TOP_KEYS, "scenario")
     name = _text(d, "name") or os.path.splitext(os.path.basename(source))[0]
@@ -564,46 +502,6 @@ def _from_dict(data: Any, source: str) -> Scenario:
         timeline=timeline, expect=expect, trace=_flag(d, "trace", True),
         reference=_text(d, "reference"), known_failure=_text(d, "known_failure"),
         source=source, uavcan_nodes=tuple(nodes))
-
-
-class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader with a depth limit: its composer recurses once per level, so a
-    deeply nested document would otherwise end in RecursionError."""
-
-    def __init__(self, stream: str) -> None:
-        super().__init__(stream)
-        self._depth = 0
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        self._depth += 1
-        try:
-            if self._depth > MAX_DEPTH:
-                raise yaml.composer.ComposerError(
-                    None, None, f"nested deeper than {MAX_DEPTH} levels",
-                    self.peek_event().start_mark)
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-
-def parse_yaml(text: str, source: str) -> Any:
-    """The YAML document in ``text``, or ScenarioError naming ``source`` and the line.
-
-    Besides its own YAMLError, PyYAML's safe constructors let ValueError, TypeError,
-    AttributeError and OverflowError out on some malformed scalars (``!!timestamp 1``,
-    ``2001-13-45``, ``!!int`` of a huge float); they are the document's fault, so they are
-    reported the same way.
-    """
-    try:
-        return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ScenarioError(f"{source}: not valid YAML{at}: "
-                            f"{getattr(exc, 'problem', None) or exc}") from None
-    except (ValueError, TypeError, AttributeError, OverflowError, RecursionError) as exc:
-        raise ScenarioError(f"{source}: not valid YAML: a value PyYAML cannot build "
-                            f"({type(exc).__name__}: {_r(str(exc))})") from None
 
 
 def load_scenario(path: str) -> Scenario:
