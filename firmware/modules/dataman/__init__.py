@@ -15,13 +15,20 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from firmware.modules.dataman.store import MISSION_SLOTS, MissionStore, Partition, StoreError
+from firmware.modules.dataman.store import (
+    MISSION_SLOTS,
+    MissionStore,
+    Partition,
+    SaveError,
+    StoreError,
+)
 from firmware.platform.module import ModuleBase
 
 if TYPE_CHECKING:
     from firmware.system import System
 
-__all__ = ["MISSION_SLOTS", "DatamanModule", "MissionStore", "StoreError", "find_store"]
+__all__ = ["MISSION_SLOTS", "DatamanModule", "MissionStore", "SaveError", "StoreError",
+           "find_store"]
 
 
 class DatamanModule(ModuleBase):
@@ -61,13 +68,18 @@ class DatamanModule(ModuleBase):
     def status_lines(self) -> list[str]:
         s = self.store
         where = "memory only" if s.partition is None else f"saved to {s.partition!r}"
-        return [(f"mission: {s.count} items in slot {s.dataman_id}, current {s.current_seq}, "
+        return [(f"mission: {s.count} of at most {s.capacity} items in slot {s.dataman_id}, "
+                 f"current {s.current_seq}, "
                  f"update #{s.update_counter} ({where}, {s.saves} saves, "
                  f"{s.save_failures} failed)")]
 
     def custom_command(self, args: list[str]) -> int:
         if args[0] == "clear":
-            self.store.clear()
+            try:
+                self.store.clear()
+            except SaveError as exc:
+                self.print(f"{exc}")
+                return 1
             self.print("dataman: mission cleared")
             return 0
         return super().custom_command(args)

@@ -10,6 +10,13 @@ Persistence is a hook: any object with ``size``, ``read(offset, n)`` and ``write
 (the FRAM ``waypoints`` partition, a :class:`~firmware.platform.params.MemoryPartition`). Only the
 active mission is written, as one record guarded by a CRC, so a power cut during a save leaves
 either the old or the new mission, never a mix that the navigator would fly.
+
+The partition bounds the mission: :attr:`MissionStore.capacity` items (151 in the FMUv2's 8 KiB
+waypoint partition), so the mission protocol can refuse a longer one before it is sent
+(MAV_MISSION_NO_SPACE, as PX4 does). A mission becomes active only once it is saved: a save that
+fails raises :class:`SaveError` and leaves the previous mission active, in memory and (as far
+as the partition still takes writes) in storage, so an accepted mission is always the one that
+comes back after a power cycle.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from typing import Any, Protocol
 
 from firmware.platform.msgdef import MessageRegistry, default_registry
 
-__all__ = ["MISSION_SLOTS", "MissionStore", "Partition", "StoreError"]
+__all__ = ["MAX_ITEMS", "MISSION_SLOTS", "MissionStore", "Partition", "SaveError", "StoreError"]
 
 #: number of mission slots (PX4's DM_KEY_WAYPOINTS_OFFBOARD_0 / _1)
 MISSION_SLOTS = 2
@@ -34,6 +41,12 @@ _HEADER = struct.Struct("<4sBHiHI")  # magic, dataman_id, count, current_seq, co
 
 class StoreError(ValueError):
     """A bad index, slot or item: a bug in the caller (MAVLink, a test), so it raises."""
+
+
+class SaveError(RuntimeError):
+    """The mission could not be written to its partition (full, or the device refused the
+    write). Raised, not returned, so that no caller can report a mission as stored when it
+    is not; the previous mission is still the active one."""
 
 
 class Partition(Protocol):
@@ -112,18 +125,41 @@ class MissionStore:
     def inactive_slot(self) -> int:
         return (self.dataman_id + 1) % MISSION_SLOTS
 
+    @property
+    def capacity(self) -> int:
+        """Most items a mission may have: what one record in the partition holds (and at most
+        :data:`MAX_ITEMS`, the slot size)."""
+        part = self.partition
+        if part is None:
+            return MAX_ITEMS
+        return max(0, min(MAX_ITEMS, (part.size - _HEADER.size) // self._item_size))
+
     def commit(self, dataman_id: int, count: int, current_seq: int = 0) -> None:
-        """Make ``count`` items of slot ``dataman_id`` the active mission and save it."""
+        """Make ``count`` items of slot ``dataman_id`` the active mission and save it.
+
+        The new mission is saved first and activated only when the save succeeded; otherwise
+        :class:`SaveError` is raised, the old mission stays active and is written back (the
+        failed save may have overwritten part of its record).
+        """
         slot = self._slot(dataman_id)
         if not 0 <= count <= len(slot):
             raise StoreError(f"dataman: commit of {count} items but slot {dataman_id} "
                              f"holds {len(slot)}")
+        if count > self.capacity:
+            raise SaveError(f"dataman: a mission of {count} items does not fit the storage "
+                            f"({self.capacity} items)")
+        current_seq = current_seq if 0 <= current_seq < max(count, 1) else 0
+        counter = (self.update_counter + 1) & 0xFFFF
+        if not self._write_record(dataman_id, slot[:count], current_seq, counter):
+            self._write_record(self.dataman_id, self.items(), self.current_seq,
+                               self.update_counter)  # best effort: keep the old one stored
+            raise SaveError("dataman: the mission could not be written to storage; "
+                            "the previous mission stays active")
         del slot[count:]
         self.dataman_id = dataman_id
         self.count = count
-        self.current_seq = current_seq if 0 <= current_seq < max(count, 1) else 0
-        self.update_counter = (self.update_counter + 1) & 0xFFFF
-        self.save()
+        self.current_seq = current_seq
+        self.update_counter = counter
         self._changed()
 
     def store_mission(self, items: Iterable[Any], current_seq: int = 0) -> int:
@@ -141,12 +177,16 @@ class MissionStore:
         self.store_mission(())
 
     def set_current(self, seq: int) -> bool:
-        """Jump to item ``seq`` (MAVLink MISSION_SET_CURRENT); False if out of range."""
+        """Jump to item ``seq`` (MAVLink MISSION_SET_CURRENT); False if out of range.
+
+        Raises :class:`SaveError` (the current item unchanged) if it cannot be saved."""
         if not 0 <= seq < self.count:
             return False
+        counter = (self.update_counter + 1) & 0xFFFF
+        if not self._write_record(self.dataman_id, self.items(), seq, counter):
+            raise SaveError(f"dataman: the current item {seq} could not be saved")
         self.current_seq = seq
-        self.update_counter = (self.update_counter + 1) & 0xFFFF
-        self.save()
+        self.update_counter = counter
         self._changed()
         return True
 
@@ -159,20 +199,32 @@ class MissionStore:
     def record_size(self, count: int) -> int:
         return _HEADER.size + count * self._item_size
 
-    def save(self) -> bool:
-        """Write the active mission to the partition (no-op without one); False on failure."""
+    def save(self) -> None:
+        """Write the active mission to the partition (no-op without one); :class:`SaveError`
+        if it does not fit or the write fails."""
+        if not self._write_record(self.dataman_id, self.items(), self.current_seq,
+                                  self.update_counter):
+            raise SaveError("dataman: the mission could not be written to storage")
+
+    def _write_record(self, dataman_id: int, items: list[Any], current_seq: int,
+                      counter: int) -> bool:
+        """One mission record into the partition; False (and counted) if it failed."""
         part = self.partition
         if part is None:
             return True
-        body = b"".join(it.pack() for it in self.items())
+        try:
+            body = b"".join(it.pack() for it in items)
+        except (struct.error, OverflowError, ValueError):
+            self.save_failures += 1  # a field the record cannot hold (no upload stores one)
+            return False
         if _HEADER.size + len(body) > part.size:
             self.save_failures += 1
             return False
-        fields = (self.dataman_id, self.count, self.current_seq, self.update_counter)
+        fields = (dataman_id, len(items), current_seq, counter)
         crc = zlib.crc32(struct.pack("<BHiH", *fields) + body)
         head = _HEADER.pack(_MAGIC, *fields, crc)
         # Body first, header (holding the CRC over both) last: a cut save fails the CRC.
-        ok = part.write(_HEADER.size, body) if body else True
+        ok = bool(part.write(_HEADER.size, body)) if body else True
         ok = ok and bool(part.write(0, head))
         self.saves += ok
         self.save_failures += not ok

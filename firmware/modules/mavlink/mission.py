@@ -13,6 +13,14 @@ and MISSION_ITEM_REACHED when the navigator reports a new reached item.
 Fence and rally point lists have no storage or user in this flight stack: requests for them
 are answered MAV_MISSION_UNSUPPORTED (and AUTOPILOT_VERSION does not claim those
 capabilities), which QGroundControl handles.
+
+Bad input, as PX4 answers it: a MISSION_COUNT beyond what the storage holds is
+MAV_MISSION_NO_SPACE at once; every item, float or int, goes through one check
+(:func:`check_item`) that answers MAV_MISSION_UNSUPPORTED_FRAME, MAV_MISSION_UNSUPPORTED or
+MAV_MISSION_INVALID_PARAM1..4 / PARAM5_X / PARAM6_Y / PARAM7 and aborts the upload; a failed
+save is MAV_MISSION_ERROR. In each case the previous mission stays active. Whatever the store
+holds downloads (values no message field can carry are sent as NaN / INT32_MAX, MAVLink's
+"unknown"), and a handler that fails anyway answers MAV_MISSION_ERROR instead of going silent.
 """
 
 from __future__ import annotations
@@ -26,7 +34,7 @@ from pymavlink.dialects.v20 import common as mav
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
 
-__all__ = ["SUPPORTED_NAV_CMDS", "MissionService"]
+__all__ = ["SUPPORTED_NAV_CMDS", "MissionService", "check_item", "position_deg"]
 
 RETRY_US: Final = 500_000
 MAX_RETRIES: Final = 5
@@ -34,6 +42,61 @@ SUPPORTED_NAV_CMDS: Final = frozenset({16, 17, 19, 20, 21, 22, 178})
 _REL_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 _ABS_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT})
 _NO_POS_CMDS: Final = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no position
+_GLOBAL_FRAMES: Final = _REL_FRAMES | _ABS_FRAMES
+#: the parameters (1..4) each command uses; NaN in them is MAVLink's "default/unchanged"
+#: (yaw: keep the heading mode; hold time: none; radii: NAV_ACC_RAD / the default; speed: no
+#: change), infinity is never meaningful. Unused parameters are ignored, as PX4 does.
+_USED_PARAMS: Final[dict[int, tuple[int, ...]]] = {
+    16: (1, 2, 4), 17: (3, 4), 19: (1, 3), 20: (), 21: (4,), 22: (4,), 178: (2,)}
+_INVALID_PARAM: Final = (mav.MAV_MISSION_INVALID_PARAM1, mav.MAV_MISSION_INVALID_PARAM2,
+                         mav.MAV_MISSION_INVALID_PARAM3, mav.MAV_MISSION_INVALID_PARAM4)
+INT32_MAX: Final = 0x7FFFFFFF
+#: the largest finite float32 (a MAVLink float field)
+FLT_MAX: Final = 3.4028234663852886e38
+
+
+def position_deg(m: Any) -> tuple[float, float]:
+    """An item's x/y in degrees: MISSION_ITEM_INT carries degE7 integers, MISSION_ITEM floats."""
+    if m.get_msgId() == mav.MAVLINK_MSG_ID_MISSION_ITEM_INT:
+        return int(m.x) / 1e7, int(m.y) / 1e7
+    return float(m.x), float(m.y)
+
+
+def check_item(command: int, frame: int, params: tuple[float, float, float, float],
+               lat_deg: float, lon_deg: float, alt_m: float) -> int:
+    """The one validation of a mission item, for both protocols: MAV_MISSION_ACCEPTED or the
+    MAV_MISSION_RESULT PX4 answers (the frame first, then the command, then the fields)."""
+    if frame in _GLOBAL_FRAMES:
+        if command not in SUPPORTED_NAV_CMDS:
+            return mav.MAV_MISSION_UNSUPPORTED
+    elif frame == mav.MAV_FRAME_MISSION:
+        if command not in _NO_POS_CMDS:  # PX4: a position command needs a global frame
+            return mav.MAV_MISSION_UNSUPPORTED
+    else:
+        return mav.MAV_MISSION_UNSUPPORTED_FRAME
+    for n in _USED_PARAMS[command]:
+        if math.isinf(params[n - 1]):
+            return int(_INVALID_PARAM[n - 1])
+    if command not in _NO_POS_CMDS:
+        if not (math.isfinite(lat_deg) and -90.0 <= lat_deg <= 90.0):
+            return mav.MAV_MISSION_INVALID_PARAM5_X
+        if not (math.isfinite(lon_deg) and -180.0 <= lon_deg <= 180.0):
+            return mav.MAV_MISSION_INVALID_PARAM6_Y
+        if not math.isfinite(alt_m):
+            return mav.MAV_MISSION_INVALID_PARAM7
+    return mav.MAV_MISSION_ACCEPTED
+
+
+def _e7(deg: float) -> int:
+    """Degrees as MAVLink degE7 for a download: INT32_MAX ("unknown") if it cannot be one."""
+    if not math.isfinite(deg):
+        return INT32_MAX
+    return max(-INT32_MAX, min(INT32_MAX, round(deg * 1e7)))
+
+
+def _f32(v: float) -> float:
+    """A value a MAVLink float field can carry (beyond float32's range: infinity)."""
+    return v if not math.isfinite(v) or abs(v) <= FLT_MAX else math.copysign(math.inf, v)
 
 
 class MissionService:
@@ -46,15 +109,30 @@ class MissionService:
         self.uploads = 0
 
     def handlers(self) -> dict[int, Callable[[Any], None]]:
-        return {mav.MAVLINK_MSG_ID_MISSION_COUNT: self._on_count,
-                mav.MAVLINK_MSG_ID_MISSION_ITEM_INT: self._on_item,
-                mav.MAVLINK_MSG_ID_MISSION_ITEM: self._on_item,
-                mav.MAVLINK_MSG_ID_MISSION_REQUEST_LIST: self._on_request_list,
-                mav.MAVLINK_MSG_ID_MISSION_REQUEST_INT: self._on_request,
-                mav.MAVLINK_MSG_ID_MISSION_REQUEST: self._on_request,
-                mav.MAVLINK_MSG_ID_MISSION_ACK: self._on_ack,
-                mav.MAVLINK_MSG_ID_MISSION_CLEAR_ALL: self._on_clear,
-                mav.MAVLINK_MSG_ID_MISSION_SET_CURRENT: self._on_set_current}
+        table: dict[int, Callable[[Any], None]] = {
+            mav.MAVLINK_MSG_ID_MISSION_COUNT: self._on_count,
+            mav.MAVLINK_MSG_ID_MISSION_ITEM_INT: self._on_item,
+            mav.MAVLINK_MSG_ID_MISSION_ITEM: self._on_item,
+            mav.MAVLINK_MSG_ID_MISSION_REQUEST_LIST: self._on_request_list,
+            mav.MAVLINK_MSG_ID_MISSION_REQUEST_INT: self._on_request,
+            mav.MAVLINK_MSG_ID_MISSION_REQUEST: self._on_request,
+            mav.MAVLINK_MSG_ID_MISSION_ACK: self._on_ack,
+            mav.MAVLINK_MSG_ID_MISSION_CLEAR_ALL: self._on_clear,
+            mav.MAVLINK_MSG_ID_MISSION_SET_CURRENT: self._on_set_current}
+        return {msg_id: self._guarded(fn) for msg_id, fn in table.items()}
+
+    def _guarded(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        """``fn`` answering MAV_MISSION_ERROR if it fails: the GCS's transfer ends with an
+        answer instead of timing out, and a half-done upload is dropped (the previous
+        mission stays active)."""
+        def handle(m: Any) -> None:
+            try:
+                fn(m)
+            except Exception as exc:  # noqa: BLE001 - a GCS message must get an answer
+                self._up = None
+                self.inst.module.error(f"{m.get_type()}: {type(exc).__name__}: {exc}")
+                self._ack(m, mav.MAV_MISSION_ERROR, int(getattr(m, "mission_type", 0)))
+        return handle
 
     def store(self) -> Any:
         try:
@@ -85,15 +163,15 @@ class MissionService:
         store = self._check_type(m)
         if store is None:
             return
-        from firmware.modules.dataman.store import MAX_ITEMS
-
-        if m.count > MAX_ITEMS:
+        if m.count > store.capacity:  # PX4: refused before any item is requested
+            self.inst.send_text(mav.MAV_SEVERITY_CRITICAL,
+                                f"Mission of {m.count} items refused: storage holds "
+                                f"{store.capacity}")
             self._ack(m, mav.MAV_MISSION_NO_SPACE)
             return
         if m.count == 0:
-            store.clear()
             self._up = None
-            self._ack(m, mav.MAV_MISSION_ACCEPTED)
+            self._commit_or_error(m, store.clear)
             return
         # Items overwrite the inactive slot from index 0; commit() drops what lies beyond.
         self._up = {"partner": (m.get_srcSystem(), m.get_srcComponent()), "count": m.count,
@@ -116,17 +194,23 @@ class MissionService:
             return
         if up is None:
             return  # a late duplicate after the upload ended
+        if (m.get_srcSystem(), m.get_srcComponent()) != up["partner"]:
+            return  # PX4: an item from another ground station than the uploader is ignored
         if m.seq != up["next"]:
             if m.seq < up["next"]:
                 return  # a repeat of an item already stored
             self._ack(m, mav.MAV_MISSION_INVALID_SEQUENCE)
             return
-        result, item = self._to_item(m, up["store"])
+        store = up["store"]
+        result, item = self._to_item(m, store)
         if item is None:
             self._ack(m, result)
             self._up = None
             return
-        up["store"].write_item(up["slot"], m.seq, item)
+        if up["slot"] != store.inactive_slot():  # another link committed meanwhile
+            self._abort(m, "Mission upload aborted: the mission changed meanwhile")
+            return
+        store.write_item(up["slot"], m.seq, item)
         if m.current:
             up["current"] = m.seq
         up["next"] += 1
@@ -134,44 +218,62 @@ class MissionService:
         if up["next"] < up["count"]:
             self._request_next()
             return
-        up["store"].commit(up["slot"], up["count"], up["current"])
         self._up = None
-        self.uploads += 1
+        if self._commit_or_error(m, lambda: store.commit(up["slot"], up["count"],
+                                                          up["current"])):
+            self.uploads += 1
+
+    def _commit_or_error(self, m: Any, commit: Callable[[], Any]) -> bool:
+        """Run a store change; MAV_MISSION_ACCEPTED, or MAV_MISSION_ERROR if it could not be
+        saved (PX4's answer to a storage failure; the previous mission stays active)."""
+        from firmware.modules.dataman.store import SaveError
+
+        try:
+            commit()
+        except SaveError as exc:
+            self._abort(m, f"Mission not stored: {exc}")
+            return False
         self._ack(m, mav.MAV_MISSION_ACCEPTED)
+        return True
+
+    def _abort(self, m: Any, text: str) -> None:
+        self._up = None
+        self.inst.send_text(mav.MAV_SEVERITY_CRITICAL, text)
+        self._ack(m, mav.MAV_MISSION_ERROR)
 
     def _to_item(self, m: Any, store: Any) -> tuple[int, Any]:
         cmd = int(m.command)
-        if cmd not in SUPPORTED_NAV_CMDS:
+        lat, lon = position_deg(m)
+        p1, p2, p3, p4 = float(m.param1), float(m.param2), float(m.param3), float(m.param4)
+        alt = float(m.z)
+        result = check_item(cmd, int(m.frame), (p1, p2, p3, p4), lat, lon, alt)
+        if result != mav.MAV_MISSION_ACCEPTED:
             self.inst.send_text(mav.MAV_SEVERITY_CRITICAL,
-                                f"Mission item {m.seq}: command {cmd} not supported")
-            return mav.MAV_MISSION_UNSUPPORTED, None
-        is_int = m.get_msgId() == mav.MAVLINK_MSG_ID_MISSION_ITEM_INT
-        lat = m.x / 1e7 if is_int else float(m.x)
-        lon = m.y / 1e7 if is_int else float(m.y)
-        if m.frame in _REL_FRAMES:
-            rel = True
-        elif m.frame in _ABS_FRAMES:
-            rel = False
-        elif cmd in _NO_POS_CMDS or m.frame == mav.MAV_FRAME_MISSION:
-            rel = True
-        else:
-            return mav.MAV_MISSION_UNSUPPORTED_FRAME, None
-        item = store.new_item(lat=lat, lon=lon, altitude=float(m.z), altitude_is_relative=rel,
+                                f"Mission item {m.seq} (command {cmd}) rejected: "
+                                f"{_result_name(result)}")
+            return result, None
+        if cmd in _NO_POS_CMDS:
+            lat = lon = 0.0
+            alt = 0.0
+        rel = m.frame not in _ABS_FRAMES
+        item = store.new_item(lat=lat, lon=lon, altitude=alt, altitude_is_relative=rel,
                               nav_cmd=cmd, frame=3 if rel else 0,
                               autocontinue=bool(m.autocontinue), origin=0)
+        yaw = math.radians(p4) if math.isfinite(p4) else math.nan
         if cmd == 16:
-            item.time_inside = max(float(m.param1), 0.0)
-            item.acceptance_radius = float(m.param2)
-            item.yaw = math.radians(m.param4) if math.isfinite(m.param4) else math.nan
+            item.time_inside = p1 if p1 > 0 else 0.0
+            item.acceptance_radius = p2 if math.isfinite(p2) else 0.0
+            item.yaw = yaw
         elif cmd == 19:
-            item.time_inside = max(float(m.param1), 0.0)
-            item.loiter_radius = float(m.param3)
+            item.time_inside = p1 if p1 > 0 else 0.0
+            item.loiter_radius = p3 if math.isfinite(p3) else 0.0
         elif cmd == 17:
-            item.loiter_radius = float(m.param3)
+            item.loiter_radius = p3 if math.isfinite(p3) else 0.0
+            item.yaw = yaw
         elif cmd in (21, 22):
-            item.yaw = math.radians(m.param4) if math.isfinite(m.param4) else math.nan
+            item.yaw = yaw
         elif cmd == 178:  # DO_CHANGE_SPEED: param2 speed (m/s), -1 or NaN: no change
-            item.speed_m_s = float(m.param2) if math.isfinite(m.param2) and m.param2 > 0 else -1.0
+            item.speed_m_s = p2 if math.isfinite(p2) and p2 > 0 else -1.0
         return mav.MAV_MISSION_ACCEPTED, item
 
     # -- download -----------------------------------------------------------------------------
@@ -200,7 +302,7 @@ class MissionService:
     def _from_item(self, m: Any, it: Any, store: Any, as_int: bool) -> Any:
         cmd = int(it.nav_cmd)
         p1 = p2 = p3 = 0.0
-        p4 = math.degrees(it.yaw) if math.isfinite(it.yaw) else math.nan
+        p4 = math.degrees(it.yaw) if math.isfinite(it.yaw) else math.nan  # NaN: heading mode
         if cmd == 16:
             p1, p2 = it.time_inside, it.acceptance_radius
         elif cmd == 19:
@@ -213,12 +315,15 @@ class MissionService:
                  mav.MAV_FRAME_GLOBAL_RELATIVE_ALT) if it.altitude_is_relative else \
             (mav.MAV_FRAME_GLOBAL_INT if as_int else mav.MAV_FRAME_GLOBAL)
         current = int(m.seq == store.current_seq)
-        args = (m.get_srcSystem(), m.get_srcComponent(), m.seq, frame, cmd, current,
-                int(it.autocontinue), p1, p2, p3, p4)
+        args = (m.get_srcSystem(), m.get_srcComponent(), m.seq, frame, cmd & 0xFFFF, current,
+                int(bool(it.autocontinue)), _f32(float(p1)), _f32(float(p2)), _f32(float(p3)),
+                _f32(float(p4)))
+        alt = _f32(float(it.altitude))
         if as_int:
-            return mav.MAVLink_mission_item_int_message(
-                *args, round(it.lat * 1e7), round(it.lon * 1e7), it.altitude, 0)
-        return mav.MAVLink_mission_item_message(*args, it.lat, it.lon, it.altitude, 0)
+            return mav.MAVLink_mission_item_int_message(*args, _e7(float(it.lat)),
+                                                        _e7(float(it.lon)), alt, 0)
+        return mav.MAVLink_mission_item_message(*args, _f32(float(it.lat)), _f32(float(it.lon)),
+                                                alt, 0)
 
     def _on_ack(self, m: Any) -> None:
         self._down_partner = None
@@ -229,16 +334,21 @@ class MissionService:
         store = self._check_type(m)
         if store is None:
             return
-        store.clear()
         self._up = None
-        self._ack(m, mav.MAV_MISSION_ACCEPTED)
+        self._commit_or_error(m, store.clear)
 
     def _on_set_current(self, m: Any) -> None:
         store = self.store()
         if store is None:
             return
-        if not store.set_current(int(m.seq)):
-            self.inst.send_text(mav.MAV_SEVERITY_ERROR, f"Mission item {m.seq} does not exist")
+        from firmware.modules.dataman.store import SaveError
+
+        try:
+            if not store.set_current(int(m.seq)):
+                self.inst.send_text(mav.MAV_SEVERITY_ERROR,
+                                    f"Mission item {m.seq} does not exist")
+        except SaveError as exc:
+            self.inst.send_text(mav.MAV_SEVERITY_ERROR, f"Current mission item not saved: {exc}")
         # the MISSION_CURRENT stream confirms the new item; send it now
         self.inst.send_stream_once(mav.MAVLINK_MSG_ID_MISSION_CURRENT)
 
@@ -257,3 +367,8 @@ class MissionService:
         if res is not None and res.seq_reached >= 0 and res.seq_reached != self._last_reached:
             self._last_reached = int(res.seq_reached)
             self.inst.send(mav.MAVLink_mission_item_reached_message(self._last_reached))
+
+
+def _result_name(result: int) -> str:
+    entry = mav.enums["MAV_MISSION_RESULT"].get(result)
+    return entry.name if entry is not None else str(result)
