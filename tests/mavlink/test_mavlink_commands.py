@@ -121,3 +121,46 @@ def test_no_ack_means_timeout_not_hang(session):
     finally:
         gcs.target_system = 1
     assert session.orch.t_ns - t0 <= 400_000_000
+
+
+@pytest.mark.parametrize(("command", "params"), [
+    (mav.MAV_CMD_REQUEST_MESSAGE, [math.nan]),
+    (mav.MAV_CMD_REQUEST_MESSAGE, [math.inf]),
+    (mav.MAV_CMD_REQUEST_MESSAGE, [-1e30]),
+    (mav.MAV_CMD_SET_MESSAGE_INTERVAL, [math.nan, 100_000]),
+    (mav.MAV_CMD_SET_MESSAGE_INTERVAL, [-math.inf, 100_000]),
+    (mav.MAV_CMD_SET_MESSAGE_INTERVAL, [mav.MAVLINK_MSG_ID_SYS_STATUS, math.nan]),
+    (mav.MAV_CMD_SET_MESSAGE_INTERVAL, [mav.MAVLINK_MSG_ID_SYS_STATUS, math.inf]),
+    (mav.MAV_CMD_GET_MESSAGE_INTERVAL, [math.nan]),
+    (mav.MAV_CMD_GET_MESSAGE_INTERVAL, [3e38]),
+])
+def test_bad_message_id_or_interval_denied(session, command, params):
+    """Defect 6: a NaN, infinite or out-of-range message id or interval is MAV_RESULT_DENIED
+    (it used to raise in the handler and leave the command unanswered)."""
+    gcs = session.gcs
+    ack = gcs.command_long(command, params, retries=0, timeout_s=0.5)
+    assert ack.result == mav.MAV_RESULT_DENIED
+    gcs.step(0.05)
+    assert not session.orch.dead
+    # the stream configuration did not change: SYS_STATUS still at its 1 Hz default
+    assert gcs.command_long(mav.MAV_CMD_GET_MESSAGE_INTERVAL,
+                            [mav.MAVLINK_MSG_ID_SYS_STATUS]).result == mav.MAV_RESULT_ACCEPTED
+
+
+def test_a_failing_command_handler_is_acked_failed(session):
+    """Defect 6 at the root: whatever a command handler raises becomes COMMAND_ACK
+    MAV_RESULT_FAILED: a command never goes unanswered."""
+    inst = next(i for i in session.orch.handles["fmu"].endpoint.board.system.modules
+                .get("mavlink").instances if getattr(i.transport, "kind", "") == "udp")
+    svc = inst.commands
+    saved = svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION]
+
+    def broken(m):
+        raise RuntimeError("a bug in a handler")
+    svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION] = broken
+    try:
+        ack = session.gcs.command_long(mav.MAV_CMD_REQUEST_PROTOCOL_VERSION, [1], retries=0,
+                                       timeout_s=0.5)
+    finally:
+        svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION] = saved
+    assert ack.result == mav.MAV_RESULT_FAILED

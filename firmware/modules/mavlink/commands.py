@@ -5,6 +5,10 @@ version) is answered here at once with an ack. Everything else is published on
 ``vehicle_command`` (``from_external`` set, the sender as source) for the commander, navigator
 and the others; their ``vehicle_command_ack`` answers go out on every link as COMMAND_ACK (PX4
 sends external acks on all links: the GCS may have sent on any of them).
+
+A command is never left unanswered by the link: a message id or interval that is NaN,
+infinite or out of range is MAV_RESULT_DENIED (as PX4 denies a request it cannot act on), and
+whatever a handler here raises is answered MAV_RESULT_FAILED (and logged).
 """
 
 from __future__ import annotations
@@ -19,7 +23,8 @@ from pymavlink.dialects.v20 import common as mav
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
 
-__all__ = ["CAPABILITIES", "CommandService", "autopilot_version", "send_protocol_version"]
+__all__ = ["CAPABILITIES", "BadParam", "CommandService", "autopilot_version", "interval_us",
+           "message_id", "send_protocol_version"]
 
 CAPABILITIES = (mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mav.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
                 | mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT | mav.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
@@ -52,6 +57,28 @@ def autopilot_version(inst: MavlinkInstance) -> Any:
 
 
 PROTOCOL_VERSION_ID, PROTOCOL_VERSION_CRC_EXTRA = 300, 217
+#: MAVLink 2 message ids are 24 bits
+MAX_MSG_ID = (1 << 24) - 1
+
+
+class BadParam(ValueError):
+    """A command parameter the link cannot act on (NaN, infinite, out of range): DENIED."""
+
+
+def message_id(value: float) -> int:
+    """A message id from a float command parameter; :class:`BadParam` unless it is a whole
+    number in 0..2^24-1 (NaN and infinity included: PX4 would cast them to garbage)."""
+    if not math.isfinite(value) or value != int(value) or not 0 <= value <= MAX_MSG_ID:
+        raise BadParam(f"message id {value!r} is not a MAVLink message id")
+    return int(value)
+
+
+def interval_us(value: float) -> float:
+    """A SET_MESSAGE_INTERVAL interval (-1 off, 0 default, > 0 µs); :class:`BadParam` if not
+    finite."""
+    if not math.isfinite(value):
+        raise BadParam(f"message interval {value!r} is not a number of microseconds")
+    return value
 
 
 def send_protocol_version(inst: MavlinkInstance) -> None:
@@ -106,9 +133,27 @@ class CommandService:
         local = self.local.get(command)
         if local is not None:
             self._local_p = (*p, p5, p6, p7)
-            result = local(m)
+            try:
+                result = local(m)
+            except BadParam as exc:
+                result = mav.MAV_RESULT_DENIED
+                inst.send_text(mav.MAV_SEVERITY_WARNING, f"Command {command} denied: {exc}")
+            except Exception as exc:  # noqa: BLE001 - every command gets its answer
+                result = mav.MAV_RESULT_FAILED
+                inst.module.error(f"command {command}: {type(exc).__name__}: {exc}")
             inst.ack_command(command, result, src_sys, src_comp)
             return
+        try:
+            self._forward(m, command, p, p5, p6, p7, confirmation)
+        except Exception as exc:  # noqa: BLE001 - every command gets its answer
+            inst.module.error(f"command {command}: {type(exc).__name__}: {exc}")
+            inst.ack_command(command, mav.MAV_RESULT_FAILED, src_sys, src_comp)
+
+    def _forward(self, m: Any, command: int, p: tuple, p5: float, p6: float, p7: float,
+                 confirmation: int) -> None:
+        """Publish the command on ``vehicle_command`` for the module that handles it."""
+        inst = self.inst
+        src_sys, src_comp = m.get_srcSystem(), m.get_srcComponent()
         c = self._cmd
         c.timestamp = inst.time_us()
         c.param1, c.param2, c.param3, c.param4 = p
@@ -132,7 +177,7 @@ class CommandService:
     def _request_message(self, m: Any) -> int:
         from firmware.modules.mavlink.services import REQUESTABLE
 
-        msg_id = int(self._local_p[0])
+        msg_id = message_id(self._local_p[0])
         inst = self.inst
         if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             inst.send(autopilot_version(inst))
@@ -148,7 +193,7 @@ class CommandService:
     def _set_interval(self, m: Any) -> int:
         from firmware.modules.mavlink.streams import DEFAULT_RATES, STREAM_BY_ID
 
-        msg_id, interval = int(self._local_p[0]), self._local_p[1]
+        msg_id, interval = message_id(self._local_p[0]), interval_us(self._local_p[1])
         sdef = STREAM_BY_ID.get(msg_id)
         if sdef is None:
             return mav.MAV_RESULT_UNSUPPORTED
@@ -162,7 +207,9 @@ class CommandService:
         return mav.MAV_RESULT_ACCEPTED
 
     def _get_interval(self, m: Any) -> int:
-        msg_id = int(self._local_p[0])
+        msg_id = message_id(self._local_p[0])
+        if msg_id > 0xFFFF:  # MESSAGE_INTERVAL's message_id is 16 bits
+            raise BadParam(f"message id {msg_id} does not fit MESSAGE_INTERVAL")
         interval = self.inst.stream_interval_us(msg_id)
         self.inst.send(mav.MAVLink_message_interval_message(msg_id, interval if interval
                                                             is not None else 0))
