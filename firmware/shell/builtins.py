@@ -290,14 +290,11 @@ def cmd_cat(sh: Shell, argv: list[str]) -> int:
         return sh.usage(["usage: cat FILE..."])
     status = 0
     for path in argv[1:]:
-        try:
-            sh.write(sh.system.resolve_path(path).read_text())
-        except PathError as exc:
-            sh.error("cat", str(exc))
+        text = sh.open_text("cat", path)
+        if text is None:
             status = 1
-        except OSError as exc2:
-            sh.error("cat", f"{path}: {exc2.strerror or exc2}")
-            status = 1
+        else:
+            sh.write(text)
     return status
 
 

@@ -201,7 +201,7 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
         if path is None:
             return 1
         try:
-            text = path.read_text()
+            text = sh.read_text(path)
         except OSError as exc2:
             sh.error("param import", f"{args[0]}: {exc2.strerror or exc2}")
             return 1

@@ -12,11 +12,18 @@ subset is what PX4's ROMFS needs:
 - ``&&`` and ``||``; ``#`` comments; ``sh FILE [args]``; ``exit [n]``.
 
 Errors never leave the shell: a failing command sets its status and the next line runs. In a
-script every error message starts with ``FILE:LINE:``.
+script every error message starts with ``FILE:LINE:``. One guard (:meth:`Shell._contain`) turns
+every exception into an error line and a status, whether a command raised it (the rest of the
+line runs on) or the interpreter did (the rest of the line is dropped). nsh's fixed limits are
+kept (a line of :data:`~firmware.shell.parser.MAX_LINE_CHARS`, ``if`` nested
+:data:`MAX_IF_DEPTH` deep, an expanded word of :data:`MAX_WORD_CHARS`, scripts
+:data:`MAX_SCRIPT_DEPTH` deep), so nothing recurses in Python past a stated depth: a line from
+the console or a link cannot stop the board.
 """
 
 from __future__ import annotations
 
+import errno
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -25,14 +32,23 @@ from typing import TYPE_CHECKING, Final
 
 from mypy_extensions import mypyc_attr
 
-from firmware.shell.parser import ShellSyntaxError, Word, split_statements, tokenize
+from firmware.shell.parser import (ShellLimitError, ShellSyntaxError, Word, split_statements,
+                                   tokenize)
 
 if TYPE_CHECKING:
     from firmware.system import System
 
-__all__ = ["MAX_SCRIPT_DEPTH", "Command", "Shell"]
+__all__ = ["MAX_IF_DEPTH", "MAX_SCRIPT_DEPTH", "MAX_WORD_CHARS", "Command", "NotATextFile",
+           "Shell"]
 
+#: ``sh`` scripts running inside each other (nsh has no limit but its stack; each level here
+#: is about a dozen Python frames).
 MAX_SCRIPT_DEPTH: Final = 16
+#: ``if`` blocks open at once in one script or at the prompt: CONFIG_NSH_NESTDEPTH of the FMUv2.
+MAX_IF_DEPTH: Final = 8
+#: The longest word after expansion: ``set A $A$A$A...`` would otherwise grow a variable
+#: geometrically, line after line, until the host runs out of memory (the real FMU has 256 KiB).
+MAX_WORD_CHARS: Final = 1024
 STATUS_NOT_FOUND: Final = 127
 
 #: a command: fn(shell, argv) -> exit status (argv[0] is the command name)
@@ -45,6 +61,16 @@ _ASSIGN: Final = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)=(.*)$", re.DOTALL)
 class Command:
     fn: CommandFn
     summary: str
+
+
+@mypyc_attr(native_class=False)
+class NotATextFile(OSError):
+    """A file that is not UTF-8 text (a binary on the SD card given to ``sh``, ``cat`` or ``param
+    import``): an OSError, so every command's existing ``except OSError`` reports it."""
+
+    def __init__(self, byte_offset: int) -> None:
+        super().__init__(errno.EILSEQ, f"not a text file (invalid UTF-8 at byte {byte_offset})")
+        self.byte_offset = byte_offset
 
 
 @mypyc_attr(native_class=False)
@@ -139,10 +165,8 @@ class Shell:
         string starting with ``/``) or script text; returns the status of its last command."""
         with self.system.redirect(self.output):
             if isinstance(script, Path):
-                try:
-                    text = script.read_text()
-                except OSError as exc:
-                    self.error("sh", f"cannot open {script}: {exc.strerror}")
+                text = self._open_text("sh", str(script), script)
+                if text is None:
                     return 1
                 return self._run_text(text, name or str(script), list(args))
             if script.startswith("/") and "\n" not in script:
@@ -155,17 +179,46 @@ class Shell:
             return self._run_path(path, args)
 
     def _run_path(self, path: str, args: Sequence[str]) -> int:
+        text = self.open_text("sh", path)
+        if text is None:
+            return 1
+        return self._run_text(text, path, list(args))
+
+    # -- files -------------------------------------------------------------------------------------
+
+    def read_text(self, path: Path) -> str:
+        """The text of a file on the board's file system (a host path from
+        :meth:`System.resolve_path`), newlines as ``\n``.
+
+        The one way the shell reads a text file: raises ``OSError``, and :class:`NotATextFile`
+        (an ``OSError`` too) for bytes that are not UTF-8, so a binary file is an error that
+        says so rather than an internal error.
+        """
+        data = path.read_bytes()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise NotATextFile(exc.start) from None
+        return text.replace("\r\n", "\n").replace("\r", "\n")
+
+    def open_text(self, who: str, path: str) -> str | None:
+        """The text of the file at an FMU path, or None after an error line ``who: path:
+        reason`` (no such file, not mounted, a directory, not a text file)."""
         from firmware.system import PathError
 
         try:
-            text = self.system.resolve_path(path).read_text()
+            host = self.system.resolve_path(path)
         except PathError as exc:
-            self.error("sh", str(exc))
-            return 1
-        except OSError as exc2:
-            self.error("sh", f"cannot open {path}: {exc2.strerror or exc2}")
-            return 1
-        return self._run_text(text, path, list(args))
+            self.error(who, str(exc))
+            return None
+        return self._open_text(who, path, host)
+
+    def _open_text(self, who: str, path: str, host: Path) -> str | None:
+        try:
+            return self.read_text(host)
+        except OSError as exc:
+            self.error(who, f"{path}: {exc.strerror or exc}")
+            return None
 
     # -- scripts -----------------------------------------------------------------------------------
 
@@ -192,53 +245,82 @@ class Shell:
         return self.status
 
     def _line(self, frame: _Frame, line: str) -> None:
+        """Run one line behind the guard. A syntax error skips the line (the script goes on,
+        as nsh's does); any other failure of the interpreter itself (a limit, a bug) leaves
+        the ``if`` structure unknown, so the prompt drops its open blocks and a script ends
+        with status 1 rather than run commands from a branch it should skip."""
         try:
-            statements = split_statements(tokenize(line))
-        except ShellSyntaxError as exc:
+            for stmt in split_statements(tokenize(line)):
+                self._statement(frame, stmt)
+        except _ExitScript:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the shell's one guard (see _contain)
+            self.status = self._contain("nsh", exc)
+            if type(exc) is ShellSyntaxError:
+                return
+            if frame.name is not None:
+                raise _ExitScript(1) from None
+            frame.ifs.clear()
+
+    def _contain(self, who: str, exc: Exception) -> int:
+        """The shell's one guard: an exception from a command or from the interpreter becomes
+        an error line and exit status 1, so nothing typed on the console, a link or in a script
+        can stop the board. ``who`` is the command (or ``nsh`` for the interpreter)."""
+        if isinstance(exc, ShellLimitError):
+            self.error("nsh", str(exc))
+        elif isinstance(exc, ShellSyntaxError):
             self.error("nsh", f"syntax error: {exc}")
-            self.status = 1
-            return
-        for stmt in statements:
-            self._statement(frame, stmt)
+        elif isinstance(exc, RecursionError):
+            self.error(who, "nesting too deep (Python recursion limit)")
+        else:
+            self.error(who, f"internal error: {type(exc).__name__}: {exc}")
+        return 1
 
     def _syntax(self, msg: str) -> None:
         self.error("nsh", f"syntax error: {msg}")
         self.status = 1
 
     def _statement(self, frame: _Frame, items: list[Word | str]) -> None:
-        head = items[0]
-        kw = head.keyword if isinstance(head, Word) else None
-        rest = items[1:]
-        top = frame.ifs[-1] if frame.ifs else None
-        if kw == "if":
-            if not rest:
-                self._syntax("'if' needs a command")
+        """One statement; ``then X``, ``else X`` and ``fi X`` go on with ``X`` in a loop (not
+        by recursion, so the length of such a chain costs no Python stack)."""
+        while True:
+            head = items[0]
+            kw = head.keyword if isinstance(head, Word) else None
+            rest = items[1:]
+            top = frame.ifs[-1] if frame.ifs else None
+            if kw == "if":
+                if not rest:
+                    self._syntax("'if' needs a command")
+                    return
+                if len(frame.ifs) >= MAX_IF_DEPTH:
+                    raise ShellLimitError(f"if: nesting too deep (at most {MAX_IF_DEPTH})")
+                parent = frame.active
+                cond = self._and_or(frame, rest) == 0 if parent else False
+                frame.ifs.append(_If(frame.lineno, parent, cond))
                 return
-            parent = frame.active
-            cond = self._and_or(frame, rest) == 0 if parent else False
-            frame.ifs.append(_If(frame.lineno, parent, cond))
-            return
-        if kw in ("then", "else", "fi"):
-            want = {"then": ("cond",), "else": ("then",), "fi": ("then", "else")}[kw]
-            if top is None or top.state not in want:
-                where = f" (the 'if' is on line {top.lineno})" if top is not None else ""
-                self._syntax(f"unexpected '{kw}'{where}")
-                return
-            if kw == "fi":
-                frame.ifs.pop()
-            else:
-                top.state = kw
-            if rest:
+            if kw in ("then", "else", "fi"):
+                want = {"then": ("cond",), "else": ("then",), "fi": ("then", "else")}[kw]
+                if top is None or top.state not in want:
+                    where = f" (the 'if' is on line {top.lineno})" if top is not None else ""
+                    self._syntax(f"unexpected '{kw}'{where}")
+                    return
+                if kw == "fi":
+                    frame.ifs.pop()
+                else:
+                    top.state = kw
+                if not rest:
+                    return
                 if isinstance(rest[0], str):
                     self._syntax(f"unexpected '{rest[0]}' after '{kw}'")
                     return
-                self._statement(frame, rest)
+                items = rest
+                continue
+            if top is not None and top.state == "cond":
+                self._syntax(f"expected 'then' after the 'if' on line {top.lineno}")
+                return
+            if frame.active:
+                self._and_or(frame, items)
             return
-        if top is not None and top.state == "cond":
-            self._syntax(f"expected 'then' after the 'if' on line {top.lineno}")
-            return
-        if frame.active:
-            self._and_or(frame, items)
 
     def _and_or(self, frame: _Frame, items: list[Word | str]) -> int:
         """Run ``a && b || c`` left to right, sh style."""
@@ -269,6 +351,11 @@ class Shell:
 
     def _simple(self, frame: _Frame, words: list[Word]) -> int:
         argv = [w.expand(self.lookup) for w in words]
+        for arg in argv:
+            if len(arg) > MAX_WORD_CHARS:
+                who = argv[0][:32] if argv[0] is not arg else "nsh"
+                raise ShellLimitError(f"{who}: argument too long ({len(arg)} characters, "
+                                      f"at most {MAX_WORD_CHARS})")
         negate = False
         while argv and argv[0] == "!" and words[0].keyword == "!":
             negate = not negate
@@ -299,8 +386,7 @@ class Shell:
         except _ExitScript:
             raise
         except Exception as exc:  # noqa: BLE001 - a module bug must not take the shell down
-            self.error(name, f"internal error: {type(exc).__name__}: {exc}")
-            return 1
+            return self._contain(name, exc)
         self.error("nsh", f"{name}: command not found")
         return STATUS_NOT_FOUND
 

@@ -5,6 +5,12 @@ is executed, so ``$?`` after a command sees that command's status and words in a
 not taken are never expanded. Quoting follows sh: single quotes are literal, double quotes
 expand ``$VAR``, a backslash escapes one character, ``#`` at the start of a word begins a
 comment.
+
+A line is bounded as nsh bounds it on the FMUv2 (``CONFIG_NSH_LINELEN=128`` in PX4's
+``boards/px4/fmu-v2/nuttx-config/nsh/defconfig``: 127 characters and the terminator). nsh's
+readline cuts a longer line and runs the pieces as separate commands; here the whole line is
+refused with :class:`ShellLimitError`, so half a command never runs. The bound also bounds
+everything the interpreter does with one line (words, operators, ``then`` chains).
 """
 
 from __future__ import annotations
@@ -15,7 +21,11 @@ from typing import Final
 
 from mypy_extensions import mypyc_attr
 
-__all__ = ["OPERATORS", "ShellSyntaxError", "Word", "split_statements", "tokenize"]
+__all__ = ["MAX_LINE_CHARS", "OPERATORS", "ShellLimitError", "ShellSyntaxError", "Word",
+           "split_statements", "tokenize"]
+
+#: The longest line nsh reads (CONFIG_NSH_LINELEN - 1 on the FMUv2).
+MAX_LINE_CHARS: Final = 127
 
 OPERATORS: Final[tuple[str, ...]] = (";", "&&", "||")
 
@@ -26,6 +36,12 @@ _VAR: Final = re.compile(r"\$(?:\{([A-Za-z_][A-Za-z0-9_]*|[0-9]+|[?#])\}|([A-Za-
 @mypyc_attr(native_class=False)
 class ShellSyntaxError(ValueError):
     """A line that cannot be split into words (an unterminated quote, a dangling operator)."""
+
+
+@mypyc_attr(native_class=False)
+class ShellLimitError(ShellSyntaxError):
+    """Input beyond one of nsh's fixed limits (line length, ``if`` nesting, the length of an
+    expanded word). Its message is nsh's, without the ``syntax error`` prefix."""
 
 
 class Word:
@@ -59,7 +75,13 @@ class Word:
 
 
 def tokenize(line: str) -> list[Word | str]:
-    """Words and operator strings of one line; comments dropped."""
+    """Words and operator strings of one line; comments dropped.
+
+    Raises :class:`ShellSyntaxError` (an unterminated quote) or its subclass
+    :class:`ShellLimitError` (a line longer than :data:`MAX_LINE_CHARS`), nothing else.
+    """
+    if len(line) > MAX_LINE_CHARS:
+        raise ShellLimitError(f"line too long ({len(line)} characters, at most {MAX_LINE_CHARS})")
     tokens: list[Word | str] = []
     parts: list[tuple[str, str]] = []
     buf: list[str] = []

@@ -128,7 +128,7 @@ def test_sh_args_exit_and_missing_files(con):
     assert (status, text) == (3, "/fs/microsd/s.sh a b 2\n")
     assert con.run("sh s.sh")[0] == 3          # relative to the SD card
     status, text = con.run("sh /fs/microsd/none.sh")
-    assert status == 1 and "sh: cannot open /fs/microsd/none.sh" in text
+    assert (status, text) == (1, "sh: /fs/microsd/none.sh: No such file or directory\n")
     status, text = con.run("sh /usr/bin/x")
     assert status == 1 and "no such file or directory" in text
     (sd / "loop.sh").write_text("sh /fs/microsd/loop.sh\n")
@@ -355,3 +355,91 @@ def test_default_output_is_the_board_console(platform):
     quiet = make_system(platform)
     Shell(quiet).execute("echo kept")
     assert quiet.console_lines == ["kept"]
+
+
+# -- limits and bad input (issue 18) -------------------------------------------------------------
+
+CONSOLE = ("console", (57_600, 8, "N", 1, 0))
+
+
+def _type_on_console(board, line, budget_ns=4_000_000_000):
+    """Type ``line`` and Enter on the FMU's console UART; returns what the board sent back up
+    to its next prompt (the echo included)."""
+    t = board.kernel.now_ns
+    records = [(CONSOLE[0], t, (*CONSOLE[1], line.encode() + b"\r"))]
+    out = bytearray()
+    end = t + budget_ns
+    while t < end and not out.endswith(b"nsh> "):
+        t += 50_000_000
+        for port, _t, payload in board.advance(t, records):
+            if port == CONSOLE[0] and payload[5]:
+                out += payload[5]
+        records = []
+    return out.decode("latin-1")
+
+
+def test_a_deeply_nested_console_line_does_not_stop_the_board():
+    # Issue 18, defect 2: this line recursed in the interpreter and the RecursionError stopped
+    # the FMU's kernel (KernelError). Now it is refused and the board answers the next line.
+    from board.fmu_v2 import FmuV2Board
+
+    board = FmuV2Board(seed=1, sd_root=None)
+    board.advance(1_500_000_000, [])
+    reply = _type_on_console(board, "if true; " * 600 + "then fi " * 600)
+    assert "nsh: line too long (10200 characters, at most 127)" in reply
+    assert _type_on_console(board, "echo ok").endswith("echo ok\r\nok\nnsh> ")
+    assert board.ctl_shell("echo $?") == (0, "0\n")
+
+
+def test_if_nesting_is_bounded_as_nsh_bounds_it(con):
+    assert con.run("if true;then " * 8 + "echo deep") == (0, "deep\n")
+    assert con.run("fi;" * 8) == (0, "")
+    status, text = con.run("if true;then " * 9 + "echo deep")
+    assert (status, text) == (1, "nsh: if: nesting too deep (at most 8)\n")
+    assert con.run("echo ok") == (0, "ok\n")          # the session is back at the top level
+    assert con.run("fi")[0] == 1                        # no block left open
+    status, text = con.script("if true\n" * 9 + "then\necho never\nfi\n" * 9 + "echo after\n")
+    assert status == 1 and text == "test.sh:9: nsh: if: nesting too deep (at most 8)\n"
+
+
+def test_overlong_lines_and_expansions_are_refused(con):
+    status, text = con.run("echo " + "x" * 200)
+    assert (status, text) == (1, "nsh: line too long (205 characters, at most 127)\n")
+    con.run("set A " + "y" * 100)
+    status, text = con.run("set B $A$A$A$A$A$A$A$A$A$A$A")
+    assert (status, text) == (1, "nsh: set: argument too long (1100 characters, at most 1024)\n")
+    con.run("set B $A $A $A $A $A $A")                      # 605 characters: stored
+    con.run("set C $B $B")                                  # 1211: stored, but not expandable
+    status, text = con.run("echo $C")
+    assert (status, text) == (1, "nsh: echo: argument too long (1211 characters, at most 1024)\n")
+    status, text = con.script("echo " + "z" * 130 + "\necho next\n")
+    assert status == 1 and text == "test.sh:1: nsh: line too long (135 characters, at most 127)\n"
+    assert con.run("echo ok") == (0, "ok\n")
+
+
+def test_a_script_that_runs_itself_stops_at_the_depth_limit(con):
+    (con.system.sd_root / "me.sh").write_text("echo $#\nsh me.sh x $1\n")
+    status, text = con.run("sh me.sh")
+    assert status == 1 and "sh: me.sh: scripts nested more than 16 deep" in text
+    assert text.count("\n") == 17 and con.run("echo ok") == (0, "ok\n")
+
+
+def test_binary_files_are_not_text(con):
+    # Issue 18, defect 8: a binary file given to sh or param import was an "internal error:
+    # UnicodeDecodeError"; it is a clear error naming the command, the path and the byte.
+    sd = con.system.sd_root
+    (sd / "bin.sh").write_bytes(b"echo hi\n\xff\xfe\x00garbage")
+    (sd / "bin.params").write_bytes(b"1\t1\tSYS_AUTOSTART\t7\t6\n\x89PNG\r\n")
+    status, text = con.run("sh bin.sh")
+    assert (status, text) == (1, "sh: bin.sh: not a text file (invalid UTF-8 at byte 8)\n")
+    status, text = con.run("param import bin.params")
+    assert (status, text) == (1, "param import: bin.params: not a text file "
+                                 "(invalid UTF-8 at byte 22)\n")
+    assert con.run("param get SYS_AUTOSTART")[1] == "0\n"       # nothing half-imported
+    status, text = con.run("cat /fs/microsd/bin.sh")
+    assert (status, text) == (1, "cat: /fs/microsd/bin.sh: not a text file "
+                                 "(invalid UTF-8 at byte 8)\n")
+    host = sd / "bin.sh"
+    status = con.sh.run_script(host)
+    assert status == 1 and f"sh: {host}: not a text file" in "".join(con.chunks)
+    assert con.run("echo ok") == (0, "ok\n")
