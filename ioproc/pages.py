@@ -219,6 +219,16 @@ ADC_VSERVO = 4  #: IOv2 ADC channel of the servo rail (PA4)
 ADC_RSSI = 5  #: IOv2 ADC channel of the analog RSSI input (PA5)
 
 
+def _float_to_u16(value: float) -> int:
+    """A C float stored into a uint16_t register: truncated toward zero; out of range (undefined
+    in C) saturates and NaN gives 0, as the STM32F100's soft-float conversion does. [?]"""
+    if value != value or value <= 0.0:
+        return 0
+    if value >= 65535.0:
+        return 0xFFFF
+    return int(value)
+
+
 class RegisterFile:
     """Live register pages of one IO, with the era's write rules (a ``RegisterStore``)."""
 
@@ -408,14 +418,24 @@ class RegisterFile:
         return True
 
     def update_mixer_failsafe(self) -> None:
-        """mixer_set_failsafe: FAILSAFE_PWM = zero-input mix x600 + 1500, unless custom."""
+        """mixer_set_failsafe: FAILSAFE_PWM = zero-input mix x600 + 1500, unless custom.
+
+        Not clamped, as on the real IO: px4iofirmware/mixer.cpp mixer_set_failsafe (E14 and
+        every later version with a mixer on the IO) stores ``(outputs[i] * 600.0f) + 1500``
+        straight into the uint16 register, with no PWM_LOWEST_MIN/HIGHEST_MAX clamp (that clamp
+        is only applied to FMU writes of page 55) and no servo limits. The mixer's outputs are
+        bounded only by its scalers' limits, which the parser does not range-check, so a mixer
+        with ``O: ... 500000`` gives 50.0 and a failsafe of 31500 us, and a failsafe output then
+        drives the timer's compare register with it (a pulse longer than the PWM period: the
+        pin stays high). The float-to-uint16 conversion of a value outside 0..65535 is undefined
+        in C; modelled as saturation, NaN as 0 (the soft-float __aeabi_f2uiz). [?]
+        """
         if self.arming & Arming.FAILSAFE_CUSTOM or not self.status_flags & StatusFlags.MIXER_OK:
             return
         outputs = self.mixer.group.mix(zero_source, SERVO_COUNT)
         failsafe = self.values[PageNo.FAILSAFE_PWM]
         for i in range(SERVO_COUNT):
-            failsafe[i] = max(0, min(0xFFFF, int(outputs[i] * 600.0 + 1500))) if i < len(
-                outputs) else 0
+            failsafe[i] = _float_to_u16(outputs[i] * 600.0 + 1500) if i < len(outputs) else 0
 
     # -- per-register hooks: (page, offset, value, now_us) -> accepted -----------------------
     def _w_store(self, page: int, reg: int, value: int, now_us: int) -> bool:

@@ -21,6 +21,7 @@ an upper-case letter and ':' survive, with runs of spaces compacted.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 from ioproc.mixer.base import Mixer, NullMixer, Scaler, SimpleInput, SimpleMixer
 from ioproc.mixer.multirotor import GEOMETRIES, MultirotorMixer
@@ -47,12 +48,38 @@ class MixerRefusal(Exception):
         self.message = message
 
 
+#: digits converted at a time when wrapping a long number to 32 bits (below Python's limit on
+#: int() of a long string)
+_DIGIT_CHUNK: Final = 1000
+
+
+def _c_long(negative: bool, digits: str) -> int:
+    """The int NuttX's sscanf stores for %d (and, masked, %u) on the 32-bit STM32.
+
+    NuttX's sscanf hands the digits to strtol/strtoul, which accumulate ``accum * 10 + digit``
+    in an unsigned long without an overflow test, and negate for a '-'; %d stores the result
+    as a (32-bit) int. So a number beyond the int range wraps modulo 2**32 rather than being
+    refused: PX4's mixer parser never range-checks the scalers it reads (SimpleMixer's
+    parse_output_scaler/parse_control_scaler divide by 10000 and store; scale_check() exists
+    but neither from_text nor the IO's mixer_handle_text calls it). [?] whether the 2014
+    NuttX strtoul saturated at ULONG_MAX instead: either way the value is a finite int32.
+    """
+    accum = 0
+    for i in range(0, len(digits), _DIGIT_CHUNK):
+        chunk = digits[i:i + _DIGIT_CHUNK]
+        accum = (accum * 10 ** len(chunk) + int(chunk)) & 0xFFFFFFFF
+    if negative:
+        accum = -accum & 0xFFFFFFFF
+    return accum - (1 << 32) if accum >= 1 << 31 else accum
+
+
 def _scan_int(buf: str, pos: int) -> tuple[int, int] | None:
-    """sscanf %d / %u: skip C whitespace, optional sign, >= 1 digit. Returns (value, end)."""
+    """sscanf %d / %u: skip C whitespace, optional sign, >= 1 digit. Returns (value, end),
+    the value as the 32-bit C int the IO stores (see :func:`_c_long`)."""
     n = len(buf)
     while pos < n and buf[pos] in _C_SPACE:
         pos += 1
-    start = pos
+    negative = pos < n and buf[pos] == "-"
     if pos < n and buf[pos] in "+-":
         pos += 1
     digits = pos
@@ -60,7 +87,7 @@ def _scan_int(buf: str, pos: int) -> tuple[int, int] | None:
         pos += 1
     if pos == digits:
         return None
-    return int(buf[start:pos]), pos
+    return _c_long(negative, buf[digits:pos]), pos
 
 
 def _scan_tag_ints(buf: str, pos: int, tag: str, count: int) -> list[int] | None:

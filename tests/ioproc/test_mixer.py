@@ -255,3 +255,19 @@ def test_fuzz_upload_never_crashes(chunks) -> None:
         upload.handle([int.from_bytes(payload[i:i + 2], "little")
                        for i in range(0, len(payload), 2)])
         assert len(upload.text) < 256
+
+
+# -- issue 18, defect 10a: huge numbers are the C ints sscanf stores, never OverflowError ----
+
+@pytest.mark.parametrize("digits, stored", [
+    ("9" * 30, 1073741823),         # 10**30 - 1 modulo 2**32
+    ("9" * 400, -1),                # 10**400 - 1 modulo 2**32, as a signed int
+    ("2147483648", -2147483648),    # INT32_MAX + 1 wraps to INT32_MIN
+])
+def test_huge_scaler_numbers_are_read_as_the_c_int_the_io_stores(digits, stored) -> None:
+    (mixer,) = parse_mixer_text(f"M: 0\nO: 10000 10000 0 -10000 {digits}\n")
+    assert mixer.output_scaler.max_output == stored / 10000.0
+    (quad,) = parse_mixer_text(f"R: 4x 10000 10000 10000 {digits}\n")
+    assert quad.idle_speed == stored / 10000.0
+    outputs = quad.mix(controls(1.0, -1.0, 1.0, 1.0), 8)
+    assert all(math.isfinite(o) for o in outputs)

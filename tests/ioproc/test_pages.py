@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from ioproc.mixer import encode_mixer_upload
@@ -294,3 +296,31 @@ def test_mixer_upload_overflow_clears_mixer_ok(io: Io) -> None:
     upload(io, big)
     assert not io.regs.status_flags & StatusFlags.MIXER_OK
     assert len(io.regs.mixer.text) < 256 and len(io.regs.mixer.group) == 0
+
+
+# -- issue 18, defect 10b: the mixer-derived failsafe is E14's unclamped arithmetic ----------
+
+def test_mixer_failsafe_is_not_clamped_as_on_the_real_io(io: Io) -> None:
+    """px4iofirmware mixer_set_failsafe stores outputs * 600 + 1500 without a clamp: an output
+    scaler allowing 50.0 gives 31500 us (only FMU writes of page 55 are clamped)."""
+    upload(io, "M: 0\nO: 10000 10000 500000 -10000 500000\n")
+    assert io.regs.status_flags & StatusFlags.MIXER_OK
+    assert io.values(PageNo.FAILSAFE_PWM) == (31500,) + (0,) * 7
+    upload(io, "M: 0\nO: 10000 10000 -500000 -500000 10000\n")
+    assert io.values(PageNo.FAILSAFE_PWM) == (0,) * 8  # -28500 saturates at 0
+    # 10**40 - 1 is read as the int sscanf stores: -1 (mod 2**32), i.e. offset -0.0001
+    upload(io, "M: 0\nO: 10000 10000 " + "9" * 40 + " -10000 " + "9" * 40 + "\n")
+    assert io.regs.status_flags & StatusFlags.MIXER_OK
+    assert io.values(PageNo.FAILSAFE_PWM)[0] == 1499  # int(-0.0001 * 600 + 1500)
+
+
+def test_mixer_failsafe_of_a_nan_or_infinite_output_never_raises(io: Io) -> None:
+    from ioproc.mixer.base import Scaler, SimpleMixer
+
+    upload(io, "Z:\n")
+    for offset, want in ((math.nan, 0), (math.inf, 0xFFFF), (-math.inf, 0)):
+        io.regs.mixer.group.reset()
+        io.regs.mixer.group.add(SimpleMixer(Scaler(offset=offset, min_output=-math.inf,
+                                                   max_output=math.inf), ()))
+        io.regs.update_mixer_failsafe()
+        assert io.values(PageNo.FAILSAFE_PWM)[0] == want
