@@ -4,7 +4,7 @@ request handler's reply rules, and a fuzz of the handler with random/corrupted p
 from __future__ import annotations
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from ioproc.pages import RegisterFile
@@ -28,6 +28,7 @@ from ioproc.protocol import (
     handle_request,
     reg_to_float,
 )
+from tests.fuzzing import fuzz
 
 
 def hx(text: str) -> bytes:
@@ -214,7 +215,7 @@ class StrictRegisters(RegisterFile):
             raise
 
 
-@settings(max_examples=300, deadline=None)
+@fuzz(examples=1500)
 @given(st.binary(max_size=80))
 def test_fuzz_random_bytes(data: bytes) -> None:
     regs = StrictRegisters()
@@ -226,7 +227,7 @@ _PAGES = st.sampled_from([0, 1, 2, 3, 4, 5, 6, 7, 50, 51, 52, 53, 54, 55, 56, 10
                           127, 255])
 
 
-@settings(max_examples=300, deadline=None)
+@fuzz(examples=500)
 @given(code=st.sampled_from([0x00, 0x40]), page=_PAGES, offset=st.integers(0, 255),
        values=st.lists(st.integers(0, 0xFFFF), max_size=32),
        flip=st.none() | st.tuples(st.integers(0, 67), st.integers(1, 255)),

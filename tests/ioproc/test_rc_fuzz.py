@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from ioproc.rc import (
@@ -19,9 +19,7 @@ from ioproc.rc import (
 )
 from ioproc.rc.dsm import dsm_word
 from ioproc.rc.ppm import ppm_edges
-
-FUZZ = settings(max_examples=60, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+from tests.fuzzing import fuzz
 
 DECODERS = [
     lambda: SbusDecoder(), lambda: SbusDecoder(check_end_byte=False, offset_recovery=True),
@@ -49,7 +47,7 @@ def _check(dec, t: int, data: bytes) -> None:
     assert dec.rssi is None or 0 <= dec.rssi <= 100
 
 
-@FUZZ
+@fuzz(examples=400)
 @given(stream=chunks, which=st.integers(0, len(DECODERS) - 1))
 def test_random_streams(stream: list[tuple[int, bytes]], which: int) -> None:
     dec = DECODERS[which]()
@@ -59,7 +57,7 @@ def test_random_streams(stream: list[tuple[int, bytes]], which: int) -> None:
         _check(dec, t, data)
 
 
-@FUZZ
+@fuzz(examples=400)
 @given(seed=st.integers(0, 10_000), which=st.integers(0, len(DECODERS) - 1),
        edits=st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 255),
                                 st.sampled_from(["flip", "drop", "insert", "set"])),
@@ -86,7 +84,7 @@ def test_corrupted_valid_streams(seed: int, which: int, edits: list, repeats: in
         _check(dec, t0 + 10_000, b"")
 
 
-@FUZZ
+@fuzz(examples=400)
 @given(widths=st.lists(st.tuples(st.integers(0, 70_000), st.integers(0, 1), st.booleans()),
                        max_size=300),
        capture=st.booleans())
@@ -103,7 +101,7 @@ def test_ppm_random_edges(widths: list[tuple[int, int, bool]], capture: bool) ->
         assert all(800 <= v <= 2200 for v in d.channels)
 
 
-@FUZZ
+@fuzz(examples=400)
 @given(n=st.integers(1, 22), seed=st.integers(0, 1000),
        edits=st.lists(st.tuples(st.integers(0, 10_000), st.integers(-2500, 2500)), max_size=8))
 def test_ppm_corrupted_trains(n: int, seed: int, edits: list[tuple[int, int]]) -> None:
@@ -126,7 +124,7 @@ def test_ppm_corrupted_trains(n: int, seed: int, edits: list[tuple[int, int]]) -
             assert 0 <= d.channel_count <= 20
 
 
-@FUZZ
+@fuzz(examples=400)
 @given(ops=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 250_000), st.binary(max_size=40)),
                     max_size=30),
        era=st.sampled_from(["e14", "2018"]))
