@@ -51,12 +51,21 @@ def _cmd_params(args: argparse.Namespace) -> int:
 
 
 def _parse_params(items: list[str] | None) -> dict[str, list[float | int]]:
-    """``NAME=V1,V2`` -> {NAME: [V1, V2]}; raises ValueError with the bad item."""
+    """``NAME=V1,V2`` -> {NAME: [V1, V2]}; raises ValueError with the bad item.
+
+    Every name must be declared and every value fit its type (``ParamDef.coerce``: int32, or
+    a finite float32), so a bad one is refused here, before any board boots on it."""
+    from hil.params_doc import all_param_defs
+
+    defs = {d.name: d for d in all_param_defs()}
     out: dict[str, list[float | int]] = {}
     for item in items or []:
         name, sep, values = item.partition("=")
         if not sep or not name or not values:
             raise ValueError(f"--param {item!r}: expected NAME=VALUE[,VALUE...]")
+        d = defs.get(name)
+        if d is None:
+            raise ValueError(f"--param {item!r}: unknown parameter {name}")
         vals: list[float | int] = []
         for v in values.split(","):
             try:
@@ -66,6 +75,10 @@ def _parse_params(items: list[str] | None) -> dict[str, list[float | int]]:
                     vals.append(float(v))
                 except ValueError:
                     raise ValueError(f"--param {item!r}: {v!r} is not a number") from None
+            try:
+                d.coerce(vals[-1])
+            except ValueError as exc:  # ParamError
+                raise ValueError(f"--param {item!r}: {exc}") from None
         out[name] = vals
     return out
 

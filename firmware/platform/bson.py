@@ -18,23 +18,30 @@ __all__ = ["BsonError", "encode", "decode", "INT32", "DOUBLE"]
 DOUBLE, STRING, BINDATA, BOOL, INT32, INT64, END, ERASED = 0x01, 0x02, 0x05, 0x08, 0x10, 0x12, \
     0x00, 0xFF
 MAX_NAME = 32
+INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
+
+_I32 = struct.Struct("<i")
+_FIXED: dict[int, struct.Struct] = {INT32: _I32, DOUBLE: struct.Struct("<d"),
+                                    INT64: struct.Struct("<q"), BOOL: struct.Struct("<?")}
 
 
 @mypyc_attr(native_class=False)
 class BsonError(ValueError):
-    pass
+    """A document that cannot be encoded or decoded; the message says what and where."""
 
 
 def encode(values: dict[str, int | float]) -> bytes:
     """Encode ``{name: value}`` (int -> INT32, float -> DOUBLE) in the given order."""
     out = bytearray(4)
     for name, value in values.items():
-        raw = name.encode("ascii")
-        if len(raw) >= MAX_NAME or b"\0" in raw:
+        raw = name.encode("ascii", "replace")
+        if len(raw) >= MAX_NAME or b"\0" in raw or not name.isascii():
             raise BsonError(f"parameter name {name!r} too long or not ASCII")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise BsonError(f"parameter {name}: value {value!r} is neither int nor float")
         if isinstance(value, int):
+            if not INT32_MIN <= value <= INT32_MAX:
+                raise BsonError(f"parameter {name}: {value} is outside the int32 range")
             out += bytes((INT32,)) + raw + b"\0" + struct.pack("<i", value)
         else:
             out += bytes((DOUBLE,)) + raw + b"\0" + struct.pack("<d", value)
@@ -46,19 +53,23 @@ def encode(values: dict[str, int | float]) -> bytes:
 def decode(data: bytes) -> dict[str, int | float | bool | str | bytes] | None:
     """Decode one document; None for erased memory (length or first type byte 0xFF).
 
-    Raises :class:`BsonError` with what and where for anything malformed.
+    Every length and offset is checked against the document before it is used, so any byte
+    string either decodes or raises :class:`BsonError` (the only error) saying what and where;
+    each element moves strictly forward, so decoding ends after at most ``len(data)`` steps.
     """
+    data = bytes(data)
     if len(data) < 5:
         raise BsonError(f"document of {len(data)} bytes is shorter than the minimum 5")
-    (length,) = struct.unpack_from("<i", data, 0)
+    (length,) = _I32.unpack_from(data, 0)
     if length == -1 or data[4] == ERASED:
         return None
     if length < 5 or length > len(data):
         raise BsonError(f"length field {length} does not fit the {len(data)} bytes available")
+    end_of_elements = length - 1  # the last byte is the end-of-document 0x00
     out: dict[str, int | float | bool | str | bytes] = {}
     pos = 4
     while True:
-        if pos >= length:
+        if pos > end_of_elements:
             raise BsonError(f"no end-of-document byte within the {length} bytes of the length "
                             f"field")
         kind = data[pos]
@@ -66,42 +77,52 @@ def decode(data: bytes) -> dict[str, int | float | bool | str | bytes] | None:
         if kind == END:
             break
         if kind == ERASED:
-            return None if not out else out
-        end = data.find(b"\0", pos, min(pos + MAX_NAME, length))
-        if end < 0:
+            return out or None
+        start = pos - 1
+        nul = data.find(b"\0", pos, min(pos + MAX_NAME, end_of_elements))
+        if nul < 0:
             raise BsonError(f"element name at offset {pos} not terminated within "
-                            f"{MAX_NAME} bytes")
-        name = data[pos:end].decode("ascii", "replace")
-        pos = end + 1
-        try:
-            if kind == INT32:
-                (value,) = struct.unpack_from("<i", data, pos)
-                pos += 4
-            elif kind == DOUBLE:
-                (value,) = struct.unpack_from("<d", data, pos)
-                pos += 8
-            elif kind == INT64:
-                (value,) = struct.unpack_from("<q", data, pos)
-                pos += 8
-            elif kind == BOOL:
-                value = bool(data[pos])
-                pos += 1
-            elif kind == STRING:
-                (n,) = struct.unpack_from("<i", data, pos)
-                value = data[pos + 4:pos + 4 + n].rstrip(b"\0").decode("utf-8", "replace")
-                pos += 4 + n
-            elif kind == BINDATA:
-                (n,) = struct.unpack_from("<i", data, pos)
-                value = bytes(data[pos + 5:pos + 5 + n])
-                pos += 5 + n
-            else:
-                raise BsonError(f"element {name!r}: unknown type 0x{kind:02X} at offset "
-                                f"{pos - len(name) - 2}")
-        except struct.error:
-            raise BsonError(f"element {name!r} runs past the end of the data") from None
-        if pos > length:
-            raise BsonError(f"element {name!r} runs past the length field ({length})")
+                            f"{min(MAX_NAME, end_of_elements - pos)} bytes")
+        name = data[pos:nul].decode("ascii", "replace")
+        pos = nul + 1
+        value, pos = _value(data, kind, name, start, pos, end_of_elements)
         out[name] = value
     if pos != length:
         raise BsonError(f"size {length} does not match {pos} bytes decoded")
     return out
+
+
+def _value(data: bytes, kind: int, name: str, start: int, pos: int, limit: int
+           ) -> tuple[int | float | bool | str | bytes, int]:
+    """The value of element ``name`` (type byte at ``start``) at ``pos`` and the offset after
+    it; every byte of it must lie before ``limit``, the document's end-of-document byte."""
+
+    def need(n: int, what: str) -> None:
+        if n < 0 or pos + n > limit:
+            raise BsonError(f"element {name!r} at offset {start}: {what} of {n} bytes runs "
+                            f"past the end of the document (offset {limit})")
+
+    fixed = _FIXED.get(kind)
+    if fixed is not None:
+        need(fixed.size, "value")
+        if kind == BOOL:
+            return data[pos] != 0, pos + 1
+        return fixed.unpack_from(data, pos)[0], pos + fixed.size
+    if kind == STRING:  # int32 length counting the terminating NUL, then the bytes
+        need(4, "length")
+        (n,) = _I32.unpack_from(data, pos)
+        if n < 1:
+            raise BsonError(f"element {name!r} at offset {start}: string length {n} "
+                            f"(at least 1, the terminating NUL)")
+        pos += 4
+        need(n, "string")
+        return data[pos:pos + n].rstrip(b"\0").decode("utf-8", "replace"), pos + n
+    if kind == BINDATA:  # int32 length, a subtype byte, then the bytes
+        need(5, "length and subtype")
+        (n,) = _I32.unpack_from(data, pos)
+        if n < 0:
+            raise BsonError(f"element {name!r} at offset {start}: negative binary length {n}")
+        pos += 5
+        need(n, "binary data")
+        return data[pos:pos + n], pos + n
+    raise BsonError(f"element {name!r}: unknown type 0x{kind:02X} at offset {start}")

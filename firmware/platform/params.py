@@ -16,8 +16,9 @@ parameters are rounded to float32 on every set, so a value survives BSON (double
 Storage (see docs/parameters.md for the byte layout): the FRAM ``params`` partition holds two
 slots; each slot is a 16-byte header (magic, sequence number, length, CRC-32) followed by the
 PX4-format BSON document. A save writes the slot not holding the newest valid copy, so a power
-cut during a save leaves the previous copy intact: at most the change being saved is lost. A
-partition holding a bare PX4 document at offset 0 (an image from real PX4) is read as well.
+cut during a save leaves the previous copy intact: at most the change being saved is lost.
+Nothing unverified is read at boot: a bare PX4 document (what real PX4 keeps at offset 0) is
+imported on request with ``param load FILE`` (:meth:`Params.load_document`).
 """
 
 from __future__ import annotations
@@ -48,9 +49,34 @@ class ParamError(ValueError):
     pass
 
 
-def f32(x: float) -> float:
-    """Round to the nearest float32, as the STM32 stores it."""
-    return struct.unpack("<f", struct.pack("<f", x))[0]
+#: the largest finite float32; larger magnitudes round to infinity on the STM32
+FLT_MAX = 3.4028234663852886e38
+
+
+def f32(x: Any, name: str = "value") -> float:
+    """A number rounded to the nearest float32, as the STM32 stores it: the one conversion
+    every parameter value goes through (shell, QGC files, MAVLink, FRAM, scenarios, ``--param``).
+
+    NaN, the infinities and magnitudes that round beyond FLT_MAX raise :class:`ParamError`
+    naming ``name``: PX4's ``param_set`` would store their bit pattern, but no controller can
+    use them, and Python's own conversion raises OverflowError, which nobody expects."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ParamError(f"{name}: {x!r} is not a number")
+    try:
+        v = float(x)
+    except OverflowError:  # an int beyond even a double
+        raise ParamError(f"{name}: an integer of {int(x).bit_length()} bits is outside the float32 "
+                         f"range (magnitude at most {FLT_MAX:.7g})") from None
+    if math.isnan(v) or math.isinf(v):
+        raise ParamError(f"{name}: {x} is not a finite number")
+    try:
+        return float(_F32.unpack(_F32.pack(v))[0])
+    except OverflowError:
+        raise ParamError(f"{name}: {v:.7g} is outside the float32 range (magnitude at most "
+                         f"{FLT_MAX:.7g})") from None
+
+
+_F32 = struct.Struct("<f")
 
 
 @dataclass(frozen=True)
@@ -90,9 +116,7 @@ class ParamDef:
             return value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ParamError(f"{self.name} is a float parameter, got {value!r}")
-        if math.isnan(value) or math.isinf(value):
-            raise ParamError(f"{self.name}: {value} is not a finite number")
-        return f32(float(value))
+        return f32(value, self.name)
 
     def in_range(self, value: int | float) -> bool:
         return (self.min is None or value >= self.min) and (self.max is None or value <= self.max)
@@ -123,10 +147,23 @@ class MemoryPartition:
 
 _MAGIC = b"PRM1"
 _HEADER = struct.Struct("<4sIII")  # magic, sequence, document length, CRC-32
+_SEQ_MOD = 1 << 32
+_ERASED = "erased"
+
+
+def seq_newer(a: int, b: int) -> bool:
+    """Whether save number ``a`` is newer than ``b`` in 32-bit serial-number arithmetic
+    (RFC 1982): the numbers wrap at 2**32, and the newer is the one less than 2**31 ahead, so
+    save #0 after save #0xFFFFFFFF is still the newest."""
+    return 0 < (a - b) % _SEQ_MOD < (1 << 31)
 
 
 class ParamStorage:
-    """Two-slot crash-safe store of a BSON document in a partition."""
+    """Two-slot crash-safe store of a BSON document in a partition.
+
+    A boot trusts only what it can verify: a slot whose header and CRC-32 check out. Anything
+    else (a torn save, damage, a partition this store never wrote) is reported and left alone;
+    it never hides the other slot's good copy."""
 
     def __init__(self, partition: Partition) -> None:
         if partition.size < 2 * 64:
@@ -135,59 +172,86 @@ class ParamStorage:
         self.slot_size = partition.size // 2
         self.sequence = 0
         self.last_slot: int | None = None
+        self._scanned = False  # the slots were read (load or the first save)
 
-    def _read_slot(self, slot: int) -> tuple[int, bytes] | None:
+    def _read_slot(self, slot: int) -> tuple[int, bytes] | str:
+        """(sequence, document) of a valid slot, or why it is not valid (``_ERASED`` for a
+        slot never written)."""
         base = slot * self.slot_size
         head = self.part.read(base, _HEADER.size)
         if head is None or len(head) < _HEADER.size:
-            return None
+            return "header not readable"
+        if head == b"\xff" * _HEADER.size:
+            return _ERASED
         magic, seq, length, crc = _HEADER.unpack(head)
-        if magic != _MAGIC or not 5 <= length <= self.slot_size - _HEADER.size:
-            return None
+        if magic != _MAGIC:
+            hint = ""
+            if slot == 0 and 5 <= int.from_bytes(magic, "little") <= self.part.size:
+                hint = ": a bare PX4 document? `param load FILE` imports one"
+            return f"no slot header (magic {magic!r}{hint})"
+        if not 5 <= length <= self.slot_size - _HEADER.size:
+            return f"save #{seq}: document length {length} does not fit the slot"
         doc = self.part.read(base + _HEADER.size, length)
         if doc is None or len(doc) != length:
-            return None
+            return f"save #{seq}: document not readable"
         if zlib.crc32(head[4:12] + doc) != crc:
-            return None
+            return f"save #{seq}: CRC mismatch (a save cut short, or a damaged copy)"
         return seq, doc
 
-    def load(self) -> tuple[dict | None, str]:
-        """(values or None, message). None means: use the defaults; the message says why."""
-        slots = [(s, self._read_slot(s)) for s in (0, 1)]
-        valid = [(r[0], s, r[1]) for s, r in slots if r is not None]
+    def _valid_newest_first(self) -> tuple[list[tuple[int, int, bytes]], dict[int, str]]:
+        """The valid slots as (sequence, slot, document), newest first, and why the others
+        are not valid; remembers the newest so that the next save goes to the other slot."""
+        valid: list[tuple[int, int, bytes]] = []
+        invalid: dict[int, str] = {}
+        for slot in (0, 1):
+            r = self._read_slot(slot)
+            if isinstance(r, str):
+                invalid[slot] = r
+            else:
+                valid.append((r[0], slot, r[1]))
+        if len(valid) == 2 and seq_newer(valid[1][0], valid[0][0]):
+            valid.reverse()
         if valid:
-            seq, slot, doc = max(valid)
-            self.sequence, self.last_slot = seq, slot
+            self.sequence, self.last_slot = valid[0][0], valid[0][1]
+        self._scanned = True
+        return valid, invalid
+
+    def load(self) -> tuple[dict | None, str, str]:
+        """(values or None, message, level "info" | "warn" | "error"). None means: use the
+        defaults; the message says why. Loading from anything but the newest save, or with a
+        damaged slot beside the good one, is a warning naming the slot and the reason."""
+        valid, invalid = self._valid_newest_first()
+        problems = [f"slot {s}: {why}" for s, why in invalid.items() if why != _ERASED]
+        for seq, slot, doc in valid:
             try:
                 values = bson.decode(doc)
             except bson.BsonError as exc:  # CRC passed but the content is not ours
-                return None, f"parameter store slot {slot} unreadable ({exc}); defaults loaded"
-            return values or {}, (f"parameters loaded from slot {slot} (save #{seq})"
-                                  + ("" if len(valid) == 2 else "; the other slot is invalid"))
-        raw = self.part.read(0, self.part.size)
-        if raw is None:
-            return None, "parameter storage not readable; defaults loaded"
-        if raw[:5] == b"\xff" * 5 or raw == b"\xff" * len(raw):
-            return None, "no parameters stored (erased FRAM); defaults loaded"
-        try:  # a bare PX4 document at offset 0
-            values = bson.decode(raw)
-        except bson.BsonError as exc:
-            return None, f"parameter store corrupt ({exc}); defaults loaded"
-        if values is None:
-            return None, "no parameters stored (erased FRAM); defaults loaded"
-        return values, "parameters loaded from a PX4 document at offset 0"
+                problems.append(f"slot {slot}: save #{seq} does not decode ({exc})")
+                continue
+            msg = f"parameters loaded from slot {slot} (save #{seq})"
+            if problems:
+                return values or {}, (f"{'; '.join(problems)}; {msg}, the last good copy: "
+                                      f"the newest save may be lost"), "warn"
+            empty = [s for s, why in invalid.items() if why == _ERASED]
+            return values or {}, msg + ("; the other slot is empty" if empty else ""), "info"
+        if not problems:
+            return None, "no parameters stored (erased FRAM); defaults loaded", "warn"
+        return None, f"parameter store corrupt ({'; '.join(problems)}); defaults loaded", "error"
 
     def save(self, values: dict[str, int | float]) -> tuple[bool, str]:
+        """Write the slot not holding the newest valid copy: the document first, the header
+        (with the CRC over both) last, so a power cut at any byte keeps the previous copy."""
         doc = bson.encode(values)
         if len(doc) > self.slot_size - _HEADER.size:
             return False, (f"parameter document of {len(doc)} bytes does not fit a slot of "
                            f"{self.slot_size - _HEADER.size}")
+        if not self._scanned:  # never loaded: do not overwrite a newer copy blindly
+            self._valid_newest_first()
         slot = 0 if self.last_slot in (None, 1) else 1
-        seq = self.sequence + 1
+        seq = (self.sequence + 1) % _SEQ_MOD
         body = struct.pack("<II", seq, len(doc)) + doc
         head = _HEADER.pack(_MAGIC, seq, len(doc), zlib.crc32(body))
         base = slot * self.slot_size
-        # The document first, the header (with the CRC over both) last.
         if not self.part.write(base + _HEADER.size, doc) or not self.part.write(base, head):
             return False, f"write to parameter slot {slot} failed"
         self.sequence, self.last_slot = seq, slot
@@ -316,18 +380,37 @@ class Params:
         if self.storage is None:
             self.platform.error("param", "load: no parameter storage")
             return False
-        values, msg = self.storage.load()
+        values, msg, level = self.storage.load()
+        log = {"info": self.platform.info, "warn": self.platform.warn}.get(level,
+                                                                           self.platform.error)
         if not merge:
             for n in self.names:
                 self.values[n] = self.defs[n].default
         if values is None:
-            (self.platform.warn if "erased" in msg else self.platform.error)("param", msg)
+            log("param", msg)
             self.notify_quiet()
             return False
         skipped = self._apply(values, "storage")
-        self.platform.info("param", msg + (f", {skipped} skipped" if skipped else ""))
+        log("param", msg + (f", {skipped} skipped" if skipped else ""))
         self.notify_quiet()
         return True
+
+    def load_document(self, data: bytes, source: str) -> tuple[int, int]:
+        """Load a PX4 parameter file: the bare BSON document real PX4 keeps at the start of
+        its FRAM (``/fs/mtd_params``) or writes with ``param save FILE``. As PX4's ``param
+        load``, everything else goes back to its default; the result is announced and saved.
+        Returns (loaded, skipped); BsonError, before anything changed, if it does not decode."""
+        values = bson.decode(data)
+        if values is None:
+            raise bson.BsonError("the document is erased memory (0xFF)")
+        for n in self.names:
+            self.values[n] = self.defs[n].default
+        skipped = self._apply(values, source)
+        self.set_count += 1
+        self.notify()
+        self.platform.info("param", f"{source}: {len(values) - skipped} parameters loaded"
+                           + (f", {skipped} skipped" if skipped else ""))
+        return len(values) - skipped, skipped
 
     def notify_quiet(self) -> None:
         """Publish parameter_update without arming an autosave (after load)."""

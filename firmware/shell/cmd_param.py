@@ -7,10 +7,10 @@ export``/``import`` are QGroundControl ``.params`` files on the emulated SD card
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
-from firmware.platform.params import ParamError, export_qgc, f32, import_qgc
+from firmware.platform.bson import BsonError
+from firmware.platform.params import ParamError, export_qgc, import_qgc
 from firmware.system import PathError
 
 if TYPE_CHECKING:
@@ -29,7 +29,7 @@ USAGE = [
     "  reset NAME...             back to the default",
     "  reset_all [EXCLUDE...]    all back to defaults (except glob patterns)",
     "  save                      save to storage (FRAM)",
-    "  load                      load from storage",
+    "  load [FILE]               load from storage, or from a PX4 parameter file (BSON)",
     "  status                    counts and storage",
     "  export FILE               write a QGC .params file (relative to /fs/microsd)",
     "  import FILE               read a QGC .params file",
@@ -42,20 +42,15 @@ def _fmt(params: Params, name: str) -> str:
 
 
 def _parse(params: Params, name: str, text: str) -> int | float:
-    """A typed value from text: INT32 takes integers (0x.. too), FLOAT any finite number."""
+    """A typed value from text: INT32 takes integers (0x.. too), FLOAT any number that is
+    finite as a float32; anything else is a ParamError saying why (``ParamDef.coerce``)."""
     d = params.defs[name]
-    if d.type == "INT32":
-        try:
-            return int(text, 0)
-        except ValueError:
-            raise ParamError(f"{name} is an integer parameter, got '{text}'") from None
     try:
-        v = float(text)
+        value: int | float = int(text, 0) if d.type == "INT32" else float(text)
     except ValueError:
-        raise ParamError(f"{name} is a float parameter, got '{text}'") from None
-    if not math.isfinite(v):
-        raise ParamError(f"{name}: '{text}' is not a finite number")
-    return f32(v)
+        kind = "an integer" if d.type == "INT32" else "a float"
+        raise ParamError(f"{name} is {kind} parameter, got '{text}'") from None
+    return d.coerce(value)
 
 
 def _show(sh: Shell, params: Params, args: list[str]) -> int:
@@ -102,6 +97,27 @@ def _file(sh: Shell, sub: str, path: str):
         return None
 
 
+def _load_file(sh: Shell, params: Params, name: str) -> int:
+    """``param load FILE``: a PX4 parameter file (bare BSON, e.g. a real board's FRAM
+    parameters); one that does not decode changes nothing."""
+    path = _file(sh, "load", name)
+    if path is None:
+        return 1
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        sh.error("param load", f"{name}: {exc.strerror or exc}")
+        return 1
+    try:
+        loaded, skipped = params.load_document(data, name)
+    except BsonError as exc2:
+        sh.error("param load", f"{name}: not a PX4 parameter file ({exc2}); nothing changed")
+        return 1
+    sh.print(f"loaded {loaded} parameters from {name}"
+             + (f", {skipped} skipped (see dmesg)" if skipped else ""))
+    return 0
+
+
 def cmd_param(sh: Shell, argv: list[str]) -> int:
     params = sh.system.params
     if len(argv) < 2:
@@ -112,7 +128,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
         return 1
     nargs = {"get": 1, "set": 2, "greater": 2, "export": 1, "import": 1, "save": 0, "load": 0,
              "status": 0}
-    if sub in nargs and len(args) != nargs[sub] and not (sub == "set" and len(args) == 3):
+    if sub in nargs and len(args) != nargs[sub] and not (sub == "set" and len(args) == 3) \
+            and not (sub == "load" and len(args) == 1):
         sh.error("param", f"{sub}: expected {nargs[sub]} argument(s), got {len(args)}")
         return sh.usage(USAGE)
     if sub == "show":
@@ -168,6 +185,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
         n = params.reset_all(exclude=args)
         sh.print(f"{n} parameters reset to defaults")
         return 0
+    if sub == "load" and args:
+        return _load_file(sh, params, args[0])
     if sub in ("save", "load"):
         if params.storage is None:
             sh.error(f"param {sub}", "no parameter storage (FRAM not wired)")

@@ -1,5 +1,10 @@
 """Parameters: metadata, types, change notification, crash-safe storage, QGC files."""
 
+import contextlib
+import signal
+import struct
+import zlib
+
 import pytest
 
 from firmware.platform import bson
@@ -90,7 +95,7 @@ def test_save_and_load_round_trip_only_changed_values(platform):
     q = make(platform, part)
     assert q.load()
     assert q["SYS_AUTOSTART"] == 4001 and q["MC_ROLL_P"] == 6.25
-    values, _ = ParamStorage(part).load()
+    values, _, _ = ParamStorage(part).load()
     assert values == {"MC_ROLL_P": 6.25, "SYS_AUTOSTART": 4001}
 
 
@@ -116,13 +121,33 @@ def test_erased_and_corrupt_stores_give_defaults_and_say_so(platform):
     assert "corrupt" in platform.dmesg[-1][3] and platform.dmesg[-1][1] == 3
 
 
-def test_real_px4_image_at_offset_zero_loads(platform):
+def test_real_px4_image_is_not_read_at_boot_but_param_load_imports_it(platform, tmp_path):
+    # A bare PX4 document carries no CRC: at boot it is reported, not trusted (the board's
+    # store is two CRC-checked slots); `param load FILE` imports it on request.
+    px4 = bson.encode({"SYS_AUTOSTART": 4001, "MC_ROLL_P": 6.25, "GONE_PARAM": 3})
     part = MemoryPartition()
-    part.write(0, bson.encode({"SYS_AUTOSTART": 4001, "MC_ROLL_P": 6.5, "GONE_PARAM": 3}))
+    part.write(0, px4)
     p = make(platform, part)
-    assert p.load()
-    assert p["SYS_AUTOSTART"] == 4001
+    assert not p.load()
+    assert p["SYS_AUTOSTART"] == 0
+    _t, sev, _mod, text = platform.dmesg[-1]
+    assert sev == 3 and "bare PX4 document" in text and "defaults loaded" in text
+    from firmware.shell import Shell
+    from firmware.system import System
+
+    out = []
+    sh = Shell(System(platform, p, modules={}, sd_root=tmp_path), out.append)
+    (tmp_path / "px4.bson").write_bytes(px4 + b"\xff" * 100)  # a dump of the partition
+    assert sh.execute("param load px4.bson") == 0
+    assert p["SYS_AUTOSTART"] == 4001 and p["MC_ROLL_P"] == 6.25
+    assert "loaded 2 parameters from px4.bson, 1 skipped" in "".join(out)
     assert any("unknown parameter GONE_PARAM" in line[3] for line in platform.dmesg)
+    platform.kernel.run(400_000_000)  # the autosave
+    assert make(platform, part).load()
+    (tmp_path / "bad.bson").write_bytes(bytes.fromhex("0c000000 02 41 00 f9ffffff 00"))
+    out.clear()
+    assert sh.execute("param load bad.bson") == 1 and "nothing changed" in "".join(out)
+    assert p["SYS_AUTOSTART"] == 4001
 
 
 class Recorder:
@@ -205,3 +230,128 @@ def test_bad_declarations_rejected():
         ParamDef("TOO_LONG_PARAMETER_NAME", "INT32", 0)
     with pytest.raises(ParamError):
         ParamDef("X", "STRING", 0)
+
+
+# -- robustness (issue 18): reproducers of the defects fuzzing found -----------------------------
+
+@contextlib.contextmanager
+def _within(seconds):
+    """Fail (instead of hanging the suite) if the block takes longer than ``seconds``."""
+    def expire(_sig, _frame):
+        raise TimeoutError(f"still running after {seconds} s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@pytest.mark.parametrize("data", [
+    bytes.fromhex("0c000000 02 41 00 f9ffffff 00"),            # STRING, -7: looped for ever
+    bytes.fromhex("0c000000 05 41 00 ecffffff 00"),            # BINDATA, -20: looped too
+    bytes.fromhex("0c000000 02 41 00 18fcffff 00"),            # STRING, -1000: IndexError
+    bytes.fromhex("11000000 02 41 00 ecffffff 00 00000000 00"),  # -20: read as {'A': ''}
+    bytes.fromhex("10000000 05 41 00 ecffffff 00 000000 00"),  # BINDATA -20: {'A': b''}
+    bytes.fromhex("0e000000 02 41 00 ffffff7f 00 00 00"),      # a length past the document
+], ids=["string-loop", "bindata-loop", "index-error", "string-garbage", "bindata-garbage",
+        "past-the-end"])
+def test_bson_negative_or_oversized_lengths_are_errors(data):
+    with _within(2.0):
+        with pytest.raises(bson.BsonError):
+            bson.decode(data)
+
+
+def test_twelve_byte_image_no_longer_hangs_the_load(platform):
+    part = MemoryPartition()
+    part.write(0, bytes.fromhex("0c000000 02 41 00 f9ffffff 00"))
+    p = make(platform, part)
+    with _within(2.0):
+        assert not p.load()
+    assert p.values == {d.name: d.default for d in DEFS}
+
+
+@pytest.mark.parametrize("value", [1e39, -1e39, 3.5e38, 10 ** 400, float("nan"), float("inf")],
+                         ids=["1e39", "-1e39", "3.5e38", "10**400", "nan", "inf"])
+def test_values_beyond_float32_are_parameter_errors(platform, value):
+    p = make(platform)
+    with pytest.raises(ParamError, match="MC_ROLL_P"):
+        p.set("MC_ROLL_P", value)
+    assert p["MC_ROLL_P"] == 6.5
+    assert p.set("MC_ROLL_P", 3.4028235e38) == 3.4028234663852886e38  # FLT_MAX itself is fine
+
+
+def test_shell_param_set_beyond_float32_is_a_clear_error(platform, tmp_path):
+    from firmware.shell import Shell
+    from firmware.system import System
+
+    out = []
+    sh = Shell(System(platform, make(platform), modules={}, sd_root=tmp_path), out.append)
+    assert sh.execute("param set MC_ROLL_P 1e39") == 1
+    text = "".join(out)
+    assert "internal error" not in text and "param set: MC_ROLL_P" in text and "float32" in text
+    out.clear()
+    assert sh.execute("param compare MC_ROLL_P -1e39") == 1 and "float32" in "".join(out)
+
+
+def test_qgc_import_with_an_overflowing_value_applies_the_rest(platform):
+    p = make(platform)
+    sub = Subscription(platform.orb, "parameter_update")
+    sub.copy()
+    text = ("1\t1\tMC_ROLL_P\t1e39\t9\n1\t1\tSYS_AUTOSTART\t4001\t6\n"
+            "1\t1\tMC_PITCH_P\t-3e38\t9\n1\t1\tCOM_RC_LOSS_T\t2.5\t9\n")
+    n, problems = import_qgc(p, text)
+    assert n == 3 and p["SYS_AUTOSTART"] == 4001 and p["COM_RC_LOSS_T"] == 2.5
+    assert p["MC_ROLL_P"] == 6.5 and len(problems) == 1 and problems[0].startswith("line 1:")
+    assert sub.update() is not None  # what was applied is announced (and autosaved)
+
+
+def _slot_image(values_doc, seq=1):
+    """A partition whose slot 0 holds ``values_doc`` (raw BSON bytes) with a valid header."""
+    part = MemoryPartition()
+    body = struct.pack("<II", seq, len(values_doc)) + values_doc
+    part.write(16, values_doc)
+    part.write(0, struct.pack("<4sIII", b"PRM1", seq, len(values_doc), zlib.crc32(body)))
+    return part
+
+
+def test_boot_load_skips_an_overflowing_value_and_loads_the_rest(platform):
+    doc = bson.encode({"MC_ROLL_P": 1e39, "SYS_AUTOSTART": 4001, "COM_RC_LOSS_T": 2.5})
+    p = make(platform, _slot_image(doc))
+    assert p.load()
+    assert p["SYS_AUTOSTART"] == 4001 and p["COM_RC_LOSS_T"] == 2.5 and p["MC_ROLL_P"] == 6.5
+    warns = [m for _t, sev, mod, m in platform.dmesg if sev == 4 and mod == "param"]
+    assert any("MC_ROLL_P" in m and "float32" in m for m in warns), platform.dmesg
+
+
+def test_save_sequence_wraps_at_two_to_the_32(platform):
+    part = MemoryPartition()
+    p = make(platform, part)
+    p.storage.sequence = 0xFFFFFFFE
+    p.set("MC_ROLL_P", 1.0, notify=False)
+    assert p.save()  # save #0xFFFFFFFF
+    p.set("MC_ROLL_P", 2.0, notify=False)
+    assert p.save()  # the next one wraps to #0
+    assert p.storage.sequence == 0
+    q = make(platform, part)
+    assert q.load() and q["MC_ROLL_P"] == 2.0  # the wrapped save is the newest
+    assert q.storage.sequence == 0
+    q.set("MC_ROLL_P", 3.0, notify=False)
+    assert q.save() and q.storage.sequence == 1
+    r = make(platform, part)
+    assert r.load() and r["MC_ROLL_P"] == 3.0
+
+
+def test_falling_back_to_the_older_slot_is_a_warning(platform):
+    part = MemoryPartition()
+    p = make(platform, part)
+    p.set("MC_ROLL_P", 5.0, notify=False)
+    assert p.save()  # slot 0, save #1
+    p.set("MC_ROLL_P", 4.0, notify=False)
+    assert p.save()  # slot 1, save #2
+    part.data[p.storage.slot_size + 20] ^= 0x40  # the newest copy is damaged
+    q = make(platform, part)
+    assert q.load() and q["MC_ROLL_P"] == 5.0
+    t, sev, mod, text = platform.dmesg[-1]
+    assert sev == 4 and "slot 1" in text and "slot 0" in text and "CRC" in text, text
