@@ -264,3 +264,19 @@ def test_whatever_is_stored_can_be_downloaded(dataman):
     assert gcs.wait_message("MISSION_ITEM", since=mark).seq == 1
     gcs.send(mav.MAVLink_mission_clear_all_message(1, 1, 0))
     gcs.step(0.05)
+
+
+def test_download_during_an_upload_is_refused_not_stalled(dataman):
+    """Found by the fuzzer: a download asked for while an upload waits for its items got a
+    MISSION_COUNT and then silence. PX4 answers MAV_MISSION_ERROR (busy), and the uploader
+    may cancel its upload with MISSION_ACK OPERATION_CANCELLED."""
+    gcs = dataman.gcs
+    assert gcs.upload_mission(WAYPOINTS) == mav.MAV_MISSION_ACCEPTED
+    mark = gcs.mark()
+    gcs.send(mav.MAVLink_mission_count_message(1, 1, 3, 0))
+    gcs.send(mav.MAVLink_mission_request_list_message(1, 1, 0))
+    assert gcs.wait_message("MISSION_ACK", since=mark, timeout_s=0.3).type == \
+        mav.MAV_MISSION_ERROR
+    gcs.send(mav.MAVLink_mission_ack_message(1, 1, mav.MAV_MISSION_OPERATION_CANCELLED, 0))
+    assert len(gcs.download_mission()) == len(WAYPOINTS)
+    assert _store(dataman).count == len(WAYPOINTS)

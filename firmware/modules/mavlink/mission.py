@@ -278,9 +278,18 @@ class MissionService:
 
     # -- download -----------------------------------------------------------------------------
 
+    def _busy(self, m: Any) -> bool:
+        """During an upload a download is answered MAV_MISSION_ERROR (PX4's "Busy"), so the
+        GCS's download ends at once instead of waiting for items that never come."""
+        if self._up is None:
+            return False
+        self.inst.send_text(mav.MAV_SEVERITY_WARNING, "Mission download refused: upload busy")
+        self._ack(m, mav.MAV_MISSION_ERROR)
+        return True
+
     def _on_request_list(self, m: Any) -> None:
         store = self._check_type(m)
-        if store is None:
+        if store is None or self._busy(m):
             return
         self._down_partner = (m.get_srcSystem(), m.get_srcComponent())
         self.inst.send(mav.MAVLink_mission_count_message(m.get_srcSystem(), m.get_srcComponent(),
@@ -288,9 +297,7 @@ class MissionService:
 
     def _on_request(self, m: Any) -> None:
         store = self._check_type(m)
-        if store is None:
-            return
-        if self._up is not None:
+        if store is None or self._busy(m):
             return
         item = store.item(m.seq)
         if item is None:
@@ -327,6 +334,11 @@ class MissionService:
 
     def _on_ack(self, m: Any) -> None:
         self._down_partner = None
+        up = self._up
+        if up is not None and m.type == mav.MAV_MISSION_OPERATION_CANCELLED and \
+                (m.get_srcSystem(), m.get_srcComponent()) == up["partner"]:
+            self._up = None  # the uploader gave up (the mission protocol's cancel)
+            self.inst.send_text(mav.MAV_SEVERITY_INFO, "Mission upload cancelled")
 
     # -- other ------------------------------------------------------------------------------
 

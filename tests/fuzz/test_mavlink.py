@@ -1,0 +1,313 @@
+"""Fuzz targets for the FMU's MAVLink link: the receive path, the mission protocol, commands
+and the MAVLink shell, each fed through a real link of one booted FMU (shared by the module:
+a boot takes ~0.8 s, an example a few virtual milliseconds).
+
+Every target checks, after each example, that no message handler raised (the instance counts
+what its catch-all caught: ``rx_handler_errors``) and that the board is alive; then what its
+part of the protocol promises.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from pymavlink.dialects.v10 import common as mav1
+from pymavlink.dialects.v20 import common as mav
+
+from firmware.modules.mavlink.mission import SUPPORTED_NAV_CMDS, check_item
+from tests.fuzzing import fuzz
+from tests.mavlink.conftest import open_session
+
+
+class _Sink:
+    def write(self, data: bytes) -> None:  # pymavlink's packers want a file
+        pass
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory):
+    s = open_session(tmp_path_factory.mktemp("fuzz_mavlink"))
+    s.gcs.wait_heartbeat()
+    if "dataman: running" not in s.orch.call("fmu", "shell", "dataman status")[1]:
+        s.shell("dataman start")
+    s.shell("commander start")
+    s.gcs.step(0.3)
+    yield s
+    s.close()
+
+
+def _instance(s: Any) -> Any:
+    mod = s.orch.handles["fmu"].endpoint.board.system.modules.get("mavlink")
+    return next(i for i in mod.instances if getattr(i.transport, "kind", "") == "udp")
+
+
+def _store(s: Any) -> Any:
+    return s.orch.handles["fmu"].endpoint.board.system.modules.get("dataman").store
+
+
+def _healthy(s: Any, errors_before: int) -> None:
+    assert not s.orch.dead, f"the FMU died: {s.orch.dead}"
+    assert _instance(s).rx_handler_errors == errors_before, "a MAVLink handler raised"
+
+
+def _answers(s: Any) -> None:
+    """The link still answers: a parameter read and a command."""
+    gcs = s.gcs
+    gcs.send(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0,
+                                           mav.MAV_STATE_ACTIVE, 3))
+    assert gcs.param_get("MAV_SYS_ID", timeout_s=0.5) == 1
+    ack = gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION],
+                           timeout_s=0.5, retries=0)
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+
+
+# -- the receive path ------------------------------------------------------------------------
+
+_V1 = mav1.MAVLink(_Sink(), 255, 190)
+_V2 = mav.MAVLink(_Sink(), 255, 190)
+
+
+def _templates() -> list[bytes]:
+    """Real frames, v1 and v2, of messages the FMU handles (none that changes its set-up:
+    no PARAM_SET, SETUP_SIGNING or reboot)."""
+    out = []
+    for dialect, codec in ((mav1, _V1), (mav, _V2)):
+        msgs = [
+            dialect.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3),
+            dialect.MAVLink_param_request_read_message(1, 1, b"MAV_SYS_ID", -1),
+            dialect.MAVLink_param_request_read_message(1, 1, b"", 7),
+            dialect.MAVLink_command_long_message(1, 1, 512, 0, 148, 0, 0, 0, 0, 0, 0),
+            dialect.MAVLink_mission_request_list_message(1, 1),
+            dialect.MAVLink_mission_request_int_message(1, 1, 0),
+            dialect.MAVLink_ping_message(1, 2, 0, 0),
+            dialect.MAVLink_timesync_message(0, 42),
+            dialect.MAVLink_attitude_message(0, 0.1, 0.2, 0.3, 0, 0, 0),
+            dialect.MAVLink_serial_control_message(10, 6, 0, 0, 1, [10] + [0] * 69),
+        ]
+        out += [bytes(m.pack(codec)) for m in msgs]
+    return out
+
+
+TEMPLATES = _templates()
+
+
+@st.composite
+def _mutated_frames(draw: Any) -> bytes:
+    """Real frames spliced together, with bits flipped and cut short."""
+    frames = draw(st.lists(st.sampled_from(TEMPLATES), min_size=1, max_size=4))
+    data = bytearray(b"".join(frames))
+    for _ in range(draw(st.integers(0, 4))):
+        pos = draw(st.integers(0, len(data) - 1))
+        data[pos] ^= 1 << draw(st.integers(0, 7))
+    if draw(st.booleans()):
+        lo = draw(st.integers(0, len(data)))
+        hi = draw(st.integers(lo, len(data)))
+        data = data[:lo] + data[hi:] if draw(st.booleans()) else data[lo:hi]
+    return bytes(data)
+
+
+_DATAGRAMS = st.lists(st.one_of(st.binary(max_size=300), _mutated_frames(),
+                                st.sampled_from(TEMPLATES)), min_size=1, max_size=4)
+
+
+@fuzz(examples=100)
+@given(datagrams=_DATAGRAMS)
+def test_receive_path_survives_any_bytes(fmu, datagrams):
+    """Invariant: random bytes and mutated, truncated or spliced v1/v2 frames never make a
+    handler raise or the board die; after a frame's worth of idle bytes (a truncated frame
+    swallows up to its announced length, as in PX4's parser) the link answers a valid
+    PARAM_REQUEST_READ and COMMAND_LONG."""
+    errors = _instance(fmu).rx_handler_errors
+    for d in datagrams:
+        fmu.gcs.send_bytes(d)
+    fmu.gcs.send_bytes(bytes(280))
+    fmu.gcs.step(0.02)
+    _healthy(fmu, errors)
+    _answers(fmu)
+
+
+# -- the mission protocol ----------------------------------------------------------------
+
+_F32 = st.one_of(st.floats(width=32),
+                 st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 0.0, -1.0]))
+_FRAMES = st.one_of(st.sampled_from([0, 2, 3, 5, 6]), st.integers(0, 255))
+_CMDS = st.one_of(st.sampled_from(sorted(SUPPORTED_NAV_CMDS)), st.integers(0, 65535))
+_LAT_E7 = st.one_of(st.integers(-900_000_000, 900_000_000), st.integers(-2**31, 2**31 - 1))
+_LON_E7 = st.one_of(st.integers(-1_800_000_000, 1_800_000_000), st.integers(-2**31, 2**31 - 1))
+
+
+@st.composite
+def _item(draw: Any, seq: int) -> Any:
+    """A MISSION_ITEM_INT or MISSION_ITEM, mostly plausible, sometimes not at all."""
+    cmd, frame = draw(_CMDS), draw(_FRAMES)
+    p = [draw(_F32) for _ in range(4)]
+    z = draw(_F32)
+    mtype = draw(st.sampled_from([0, 0, 0, 0, 1, 255]))
+    seq = draw(st.sampled_from([seq, seq, seq, seq + 1, max(seq - 1, 0)]))
+    if draw(st.booleans()):
+        return mav.MAVLink_mission_item_int_message(1, 1, seq, frame, cmd, draw(st.integers(0, 1)),
+                                                    1, *p, draw(_LAT_E7), draw(_LON_E7), z,
+                                                    mtype)
+    x = draw(st.one_of(st.floats(-90, 90, width=32), _F32))
+    y = draw(st.one_of(st.floats(-180, 180, width=32), _F32))
+    return mav.MAVLink_mission_item_message(1, 1, seq, frame, cmd, 0, 1, *p, x, y, z, mtype)
+
+
+@st.composite
+def _mission_messages(draw: Any) -> list[Any]:
+    """An upload (MISSION_COUNT then its items in order, some bad) or a single stray message."""
+    kind = draw(st.sampled_from(["upload", "upload", "count", "item", "request", "clear", "ack",
+                                 "current"]))
+    if kind == "upload":
+        n = draw(st.integers(1, 5))
+        return [mav.MAVLink_mission_count_message(1, 1, n, 0)] + \
+            [draw(_item(seq)) for seq in range(n)]
+    if kind == "count":
+        return [mav.MAVLink_mission_count_message(1, 1, draw(st.integers(0, 65535)),
+                                                  draw(st.sampled_from([0, 1, 2, 255])))]
+    if kind == "item":
+        return [draw(_item(draw(st.integers(0, 65535))))]
+    if kind == "request":
+        cls = draw(st.sampled_from([mav.MAVLink_mission_request_int_message,
+                                    mav.MAVLink_mission_request_message]))
+        return [cls(1, 1, draw(st.integers(0, 65535)), draw(st.sampled_from([0, 1])))]
+    if kind == "clear":
+        return [mav.MAVLink_mission_clear_all_message(1, 1, draw(st.sampled_from([0, 1, 255])))]
+    if kind == "ack":
+        return [mav.MAVLink_mission_ack_message(1, 1, draw(st.integers(0, 255)), 0)]
+    return [mav.MAVLink_mission_set_current_message(1, 1, draw(st.integers(0, 65535)))]
+
+
+def _snapshot(store: Any) -> list[bytes]:
+    return [it.pack() for it in store.items()]
+
+
+def _valid(store: Any) -> bool:
+    for it in store.items():
+        cmd = int(it.nav_cmd)
+        frame = 3 if it.altitude_is_relative else 0
+        if check_item(cmd, frame, (it.time_inside, it.acceptance_radius, it.loiter_radius,
+                                   math.degrees(it.yaw) if math.isfinite(it.yaw) else math.nan),
+                      it.lat, it.lon, it.altitude) != mav.MAV_MISSION_ACCEPTED:
+            return False
+    return True
+
+
+def _download(s: Any, as_int: bool) -> list[Any]:
+    """A whole download, every request in one datagram; each item must come back. An upload
+    still in progress makes the vehicle answer MISSION_ACK ERROR (busy): the GCS then cancels
+    it (MISSION_ACK OPERATION_CANCELLED) and downloads again."""
+    gcs = s.gcs
+    for _ in range(2):
+        mark = gcs.mark()
+        gcs.send(mav.MAVLink_mission_request_list_message(1, 1, 0))
+        answer = gcs.wait_for(lambda: next(iter(
+            [m for m in gcs.messages(None, mark) if m.get_type() in ("MISSION_COUNT",
+                                                                      "MISSION_ACK")]), None),
+            0.5)
+        if answer.get_type() == "MISSION_COUNT":
+            break
+        assert answer.type == mav.MAV_MISSION_ERROR
+        gcs.send(mav.MAVLink_mission_ack_message(1, 1, mav.MAV_MISSION_OPERATION_CANCELLED, 0))
+    else:
+        raise AssertionError("the download was refused after the upload was cancelled")
+    count = answer.count
+    mark = gcs.mark()
+    req = mav.MAVLink_mission_request_int_message if as_int else \
+        mav.MAVLink_mission_request_message
+    for seq in range(count):
+        gcs.send(req(1, 1, seq, 0))
+    name = "MISSION_ITEM_INT" if as_int else "MISSION_ITEM"
+    gcs.wait_for(lambda: len({m.seq for m in gcs.messages(name, mark)}) >= count, 1.0)
+    gcs.send(mav.MAVLink_mission_ack_message(1, 1, 0, 0))
+    return gcs.messages(name, mark)
+
+
+@fuzz(examples=150)
+@given(steps=st.lists(_mission_messages(), min_size=1, max_size=4), as_int=st.booleans())
+def test_mission_protocol_keeps_a_valid_mission(fmu, steps, as_int):
+    """Invariant: any sequence of MISSION_COUNT / ITEM / ITEM_INT / REQUEST / CLEAR_ALL / ACK /
+    SET_CURRENT with any field values (NaN, infinity, huge) never makes a handler raise; the
+    active mission is after each message either the one before it or a mission whose every
+    item passes the item check; and a download of whatever is stored completes."""
+    store = _store(fmu)
+    errors = _instance(fmu).rx_handler_errors
+    for msgs in steps:
+        before = _snapshot(store)
+        for m in msgs:
+            fmu.gcs.send(m)
+        fmu.gcs.step(0.02)
+        assert _snapshot(store) == before or _valid(store)
+    _healthy(fmu, errors)
+    assert len(_download(fmu, as_int)) >= store.count
+
+
+# -- commands --------------------------------------------------------------------------------
+
+#: commands answered by modules this board does not run (navigator, camera, ...): no ack
+#: (the commander's IGNORED list), and the reboot, which would restart the shared board
+_NOT_ACKED_HERE = frozenset({16, 17, 19, 177, 178, 183, 184, 187, 189, 195, 197, 201, 205, 206,
+                             241, 242, 245, 511, 512, 519, 520, 2000, 2001, 2500, 2501, 2502,
+                             2503}) - {511, 512, 519, 520}
+_COMMANDS = st.one_of(st.sampled_from([510, 511, 512, 519, 520, 20, 21, 22, 176, 179, 185, 192,
+                                       300, 400]),
+                      st.integers(0, 65535)).filter(lambda c: c != 246)
+
+
+@st.composite
+def _command(draw: Any) -> Any:
+    cmd = draw(_COMMANDS)
+    p = [draw(_F32) for _ in range(7)]
+    if draw(st.booleans()):
+        return mav.MAVLink_command_long_message(1, draw(st.sampled_from([0, 1])), cmd,
+                                                draw(st.integers(0, 255)), *p)
+    return mav.MAVLink_command_int_message(1, draw(st.sampled_from([0, 1])),
+                                           draw(_FRAMES), cmd, 0, 0, *p[:4],
+                                           draw(_LAT_E7), draw(_LON_E7), p[6])
+
+
+@fuzz(examples=60)
+@given(commands=st.lists(_command(), min_size=1, max_size=3, unique_by=lambda m: m.command))
+def test_every_command_gets_one_ack(fmu, commands):
+    """Invariant: COMMAND_LONG / COMMAND_INT with any command id and any parameters (NaN,
+    infinity, huge) never make a handler raise, and each is answered by exactly one
+    COMMAND_ACK, except the commands other modules answer (none of which runs here)."""
+    gcs = fmu.gcs
+    errors = _instance(fmu).rx_handler_errors
+    mark = gcs.mark()
+    for c in commands:
+        gcs.send(c)
+    gcs.step(0.15)
+    _healthy(fmu, errors)
+    acks = gcs.messages("COMMAND_ACK", mark)
+    for c in commands:
+        n = sum(1 for a in acks if a.command == c.command)
+        if c.command in _NOT_ACKED_HERE:
+            assert n <= 1, (c, acks)
+        else:
+            assert n == 1, (c, acks)
+    gcs.command_long(400, [0.0, 21196.0])  # disarm (forced) whatever the commands did
+
+
+# -- the MAVLink shell -----------------------------------------------------------------------
+
+@fuzz(examples=120)
+@given(chunks=st.lists(st.tuples(st.sampled_from([10, 10, 10, 0, 255]), st.integers(0, 255),
+                                 st.integers(0, 255), st.binary(min_size=70, max_size=70)),
+                       min_size=1, max_size=3))
+def test_shell_survives_any_serial_control(fmu, chunks):
+    """Invariant: SERIAL_CONTROL with any device, flags, count and bytes never makes a handler
+    raise, and the shell still runs a line typed after them."""
+    gcs = fmu.gcs
+    errors = _instance(fmu).rx_handler_errors
+    for device, flags, count, data in chunks:
+        gcs.send(mav.MAVLink_serial_control_message(device, flags, 0, 0, count, list(data)))
+    gcs.send(mav.MAVLink_serial_control_message(10, 6, 0, 0, 2, [3, 10] + [0] * 68))
+    gcs.step(0.02)
+    _healthy(fmu, errors)
+    gcs._shell_open = False  # a fresh prompt: whatever the bytes left on the line is ended
+    assert "fuzz-ok" in gcs.shell("echo fuzz-ok", timeout_s=1.0)
