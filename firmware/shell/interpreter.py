@@ -124,6 +124,12 @@ class Shell:
         self._frames: list[_Frame] = [_Frame(None)]
         self.commands: dict[str, Command] = commands.builtin_commands()
 
+    @property
+    def open_ifs(self) -> int:
+        """``if`` blocks open at the prompt (the next lines are inside them); at most
+        :data:`MAX_IF_DEPTH`."""
+        return len(self._frames[0].ifs)
+
     # -- output ------------------------------------------------------------------------------------
 
     def write(self, text: str) -> None:
@@ -375,14 +381,17 @@ class Shell:
         return status
 
     def run_command(self, argv: list[str]) -> int:
-        """Run one expanded command; any exception becomes an error message and status 1."""
+        """Run one expanded command; any exception becomes an error message and status 1.
+
+        The status is 8 bits, as a shell's ``$?`` is: PX4's ``PX4_ERROR`` (-1) reads 255.
+        """
         name = argv[0]
         cmd = self.commands.get(name)
         try:
             if cmd is not None:
-                return int(cmd.fn(self, argv))
+                return int(cmd.fn(self, argv)) & 0xFF
             if name in self.system.modules:
-                return int(self.system.modules.command(name, argv[1:], self.location()))
+                return int(self.system.modules.command(name, argv[1:], self.location())) & 0xFF
         except _ExitScript:
             raise
         except Exception as exc:  # noqa: BLE001 - a module bug must not take the shell down
@@ -391,5 +400,6 @@ class Shell:
         return STATUS_NOT_FOUND
 
     def exit_script(self, status: int) -> None:
-        """``exit``: end the running script (or the session at the prompt)."""
-        raise _ExitScript(status)
+        """``exit``: end the running script (or the session at the prompt) with ``status``
+        taken to 8 bits, as sh does (``exit -1`` is 255)."""
+        raise _ExitScript(status & 0xFF)

@@ -135,6 +135,7 @@ def test_sh_args_exit_and_missing_files(con):
     status, text = con.run("sh /fs/microsd/loop.sh")
     assert status == 1 and "nested more than 16 deep" in text
     assert con.run("exit 5")[0] == 5 and con.sh.exited
+    assert con.run("exit -1")[0] == 255 and con.run("exit 300")[0] == 44   # 8 bits, as sh
     assert con.run("exit x")[1] == "exit: numeric argument required, got 'x'\n"
 
 
@@ -366,7 +367,7 @@ def _type_on_console(board, line, budget_ns=4_000_000_000):
     """Type ``line`` and Enter on the FMU's console UART; returns what the board sent back up
     to its next prompt (the echo included)."""
     t = board.kernel.now_ns
-    records = [(CONSOLE[0], t, (*CONSOLE[1], line.encode() + b"\r"))]
+    records = [(CONSOLE[0], t, (*CONSOLE[1], line.encode() + b"\r"))]  # what a terminal sends
     out = bytearray()
     end = t + budget_ns
     while t < end and not out.endswith(b"nsh> "):
