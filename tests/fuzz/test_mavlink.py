@@ -55,11 +55,15 @@ def _healthy(s: Any, errors_before: int) -> None:
 
 
 def _answers(s: Any) -> None:
-    """The link still answers: a parameter read and a command."""
+    """The link still takes a HEARTBEAT (the GCS is heard) and answers a parameter read and
+    a command."""
     gcs = s.gcs
+    inst = _instance(s)
+    heard_us = inst.gcs_heartbeat_us
     gcs.send(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0,
                                            mav.MAV_STATE_ACTIVE, 3))
     assert gcs.param_get("MAV_SYS_ID", timeout_s=0.5) == 1
+    assert inst.gcs_heartbeat_us > heard_us and inst.gcs_sysid == 255
     ack = gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION],
                            timeout_s=0.5, retries=0)
     assert ack.result == mav.MAV_RESULT_ACCEPTED

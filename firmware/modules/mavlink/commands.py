@@ -92,7 +92,7 @@ def send_protocol_version(inst: MavlinkInstance) -> None:
 class CommandService:
     def __init__(self, inst: MavlinkInstance) -> None:
         self.inst = inst
-        self._pub = None
+        self._pub: Any = None  # advertised on the first forwarded command
         self._cmd = inst.platform.orb.new("vehicle_command")
         self._ack_sub = inst.module.subscribe("vehicle_command_ack")
         self._ack_sub.copy()  # only acks published from now on
