@@ -182,7 +182,10 @@ class ParamStorage:
         if head is None or len(head) < _HEADER.size:
             return "header not readable"
         if head == b"\xff" * _HEADER.size:
-            return _ERASED
+            rest = self.part.read(base + _HEADER.size, self.slot_size - _HEADER.size)
+            if rest is None or rest.count(0xFF) == len(rest):
+                return _ERASED  # never written
+            return "erased header before a document (a first save cut short)"
         magic, seq, length, crc = _HEADER.unpack(head)
         if magic != _MAGIC:
             hint = ""
