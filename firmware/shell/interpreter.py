@@ -194,7 +194,7 @@ class Shell:
 
     def read_text(self, path: Path) -> str:
         """The text of a file on the board's file system (a host path from
-        :meth:`System.resolve_path`), newlines as ``\n``.
+        :meth:`System.resolve_path`), its line ends made LF as ``Path.read_text`` makes them.
 
         The one way the shell reads a text file: raises ``OSError``, and :class:`NotATextFile`
         (an ``OSError`` too) for bytes that are not UTF-8, so a binary file is an error that
@@ -357,10 +357,10 @@ class Shell:
 
     def _simple(self, frame: _Frame, words: list[Word]) -> int:
         argv = [w.expand(self.lookup) for w in words]
-        for arg in argv:
+        for i, arg in enumerate(argv):
             if len(arg) > MAX_WORD_CHARS:
-                who = argv[0][:32] if argv[0] is not arg else "nsh"
-                raise ShellLimitError(f"{who}: argument too long ({len(arg)} characters, "
+                who = f"{argv[0]}: " if i else ""
+                raise ShellLimitError(f"{who}argument too long ({len(arg)} characters, "
                                       f"at most {MAX_WORD_CHARS})")
         negate = False
         while argv and argv[0] == "!" and words[0].keyword == "!":

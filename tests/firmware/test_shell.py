@@ -413,6 +413,7 @@ def test_overlong_lines_and_expansions_are_refused(con):
     con.run("set C $B $B")                                  # 1211: stored, but not expandable
     status, text = con.run("echo $C")
     assert (status, text) == (1, "nsh: echo: argument too long (1211 characters, at most 1024)\n")
+    assert con.run("$C")[1] == "nsh: argument too long (1211 characters, at most 1024)\n"
     status, text = con.script("echo " + "z" * 130 + "\necho next\n")
     assert status == 1 and text == "test.sh:1: nsh: line too long (135 characters, at most 127)\n"
     assert con.run("echo ok") == (0, "ok\n")
