@@ -148,6 +148,31 @@ def test_internal_errors_never_escape(con):
     assert con.run("boom") == (1, "boom: internal error: ZeroDivisionError: oops\n")
     assert con.run("echo ok")[1] == "ok\n"
 
+    def deep(sh, argv):
+        return deep(sh, argv)
+
+    con.sh.commands["deep"] = Command(deep, "recurses")
+    assert con.run("deep; echo after") == (0, "deep: nesting too deep (Python recursion limit)\n"
+                                              "after\n")
+
+
+def test_an_interpreter_failure_drops_the_line_and_the_open_blocks(con, monkeypatch):
+    assert con.run("if true") == (0, "") and con.sh.open_ifs == 1
+
+    def broken(name):
+        raise KeyError(name)
+
+    monkeypatch.setattr(con.sh, "lookup", broken)
+    status, text = con.run("then; echo $X; echo never")
+    assert (status, text) == (1, "nsh: internal error: KeyError: 'X'\n")
+    assert con.sh.open_ifs == 0
+    monkeypatch.undo()
+    status, text = con.script("if true\nthen\necho $X\necho never\nfi\n")
+    assert (status, text) == (0, "\nnever\n")
+    monkeypatch.setattr(con.sh, "lookup", broken)
+    status, text = con.script("if true\nthen\necho $X\necho never\nfi\n")
+    assert (status, text) == (1, "test.sh:3: nsh: internal error: KeyError: 'X'\n")
+
 
 # -- system commands -----------------------------------------------------------------------------
 
