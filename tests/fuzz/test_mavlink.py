@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v10 import common as mav1
 from pymavlink.dialects.v20 import common as mav
 
+from firmware.modules.commander.commands import IGNORED
 from firmware.modules.mavlink.mission import SUPPORTED_NAV_CMDS, check_item
 from tests.fuzzing import fuzz
 from tests.mavlink.conftest import open_session
@@ -325,14 +326,12 @@ def test_mission_protocol_keeps_a_valid_mission(fmu, steps, as_int):
 
 # -- commands --------------------------------------------------------------------------------
 
-#: commands answered by modules this board does not run (navigator, camera, ...): no ack
-#: (the commander's IGNORED list), and the reboot, which would restart the shared board
-_NOT_ACKED_HERE = frozenset({16, 17, 19, 177, 178, 183, 184, 187, 189, 195, 197, 201, 205, 206,
-                             241, 242, 245, 511, 512, 519, 520, 2000, 2001, 2500, 2501, 2502,
-                             2503}) - {511, 512, 519, 520}
+#: commands answered by modules this board does not run (navigator, camera, ...): the
+#: commander's ignore list, less those the link answers itself
+_NOT_ACKED_HERE = IGNORED - {511, 512, 519, 520}
 _COMMANDS = st.one_of(st.sampled_from([510, 511, 512, 519, 520, 20, 21, 22, 176, 179, 185, 192,
                                        300, 400]),
-                      st.integers(0, 65535)).filter(lambda c: c != 246)
+                      st.integers(0, 65535)).filter(lambda c: c != 246)  # reboot: the board
 
 
 @st.composite
