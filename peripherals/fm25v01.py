@@ -103,6 +103,7 @@ class Fm25v01(SpiTarget):
         self.bytes_written = 0
         self.ignored_writes = 0
         self._fd: int | None = None
+        self._release: weakref.finalize | None = None
         self._awake_at_ns = 0
         self._noise = random.Random(f"{name}:noise")
         self._op: int | None = None
@@ -120,7 +121,9 @@ class Fm25v01(SpiTarget):
         assert self.path is not None
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         self._fd = fd
-        weakref.finalize(self, _close_fd, fd)
+        # One release of the descriptor, by close() or by the collector, never both: a second
+        # os.close of the same number would close whatever file has reused it since.
+        self._release = weakref.finalize(self, _close_fd, fd)
         have = os.pread(fd, self.size, 0)
         self.mem[:len(have)] = have
         if len(have) < self.size:
@@ -147,8 +150,10 @@ class Fm25v01(SpiTarget):
         """Flush the image to disk and release the file (the model stays readable)."""
         if self._fd is not None:
             os.fsync(self._fd)
-            os.close(self._fd)
             self._fd = None
+        if self._release is not None:
+            self._release()       # closes the descriptor once; later calls do nothing
+            self._release = None
 
     # -- helpers --------------------------------------------------------------------------
 

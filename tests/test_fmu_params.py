@@ -1,8 +1,6 @@
 """Parameters on the FMU: they survive a reboot through the FRAM's host file, and a corrupted
 FRAM image gives the defaults with a clear message."""
 
-import gc
-
 import pytest
 
 from board.fmu_v2 import FmuV2Board
@@ -11,11 +9,6 @@ BOOTED = 1_500_000_000
 
 
 def boot(tmp_path, **kw):
-    # FM25V01.close() closes its file but leaves its weakref finalizer armed, which closes the
-    # same descriptor number again when the closed board is collected: if a newer board's FRAM
-    # got that number, its next write fails (EBADF). Collect old boards before opening a new
-    # FRAM file (the model's fix is reported to its owner).
-    gc.collect()
     b = FmuV2Board(seed=1, fram_path=str(tmp_path / "fram.bin"), sd_root=None, **kw)
     b.kernel.run(BOOTED)
     return b

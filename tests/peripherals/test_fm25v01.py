@@ -184,6 +184,22 @@ def test_partial_host_file_padded_without_loss(kernel, tmp_path):
     chip.close()
 
 
+def test_a_closed_chip_collected_later_leaves_a_newer_file_open(kernel, tmp_path):
+    # close() released the descriptor and the collector released the same number again: if a
+    # newer FRAM file had reused it (a reboot in the same process), its writes failed (EBADF).
+    import gc
+
+    old = Fm25v01(kernel, path=tmp_path / "old.bin")
+    old.close()
+    new = Fm25v01(kernel, path=tmp_path / "new.bin")
+    dev = attach(SpiBus(kernel, "spi2"), new)
+    del old
+    gc.collect()
+    write(dev, 0x10, b"kept")
+    new.close()
+    assert (tmp_path / "new.bin").read_bytes()[0x10:0x14] == b"kept"
+
+
 def test_faults(chip, dev):
     chip.faults.absent = True
     assert dev.transfer(b"\x9f" + bytes(9)) == b"\xff" * 10
