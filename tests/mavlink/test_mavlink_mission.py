@@ -158,7 +158,7 @@ def _reopen_with_dataman(root):
 
 
 def test_mission_beyond_fram_capacity_is_no_space_and_keeps_the_old_one(tmp_path):
-    """Defect 3: 152 items do not fit the FRAM waypoint partition (151): MISSION_COUNT is
+    """Defect 3: 76 items do not fit the FRAM waypoint partition (75): MISSION_COUNT is
     answered MAV_MISSION_NO_SPACE before any item is requested, and after a power cycle the
     mission that was accepted before is still the one stored."""
     s = _reopen_with_dataman(tmp_path)
@@ -166,19 +166,19 @@ def test_mission_beyond_fram_capacity_is_no_space_and_keeps_the_old_one(tmp_path
         gcs = s.gcs
         assert gcs.upload_mission(WAYPOINTS) == mav.MAV_MISSION_ACCEPTED
         mark = gcs.mark()
-        gcs.send(mav.MAVLink_mission_count_message(1, 1, 152, 0))
+        gcs.send(mav.MAVLink_mission_count_message(1, 1, 76, 0))
         ack = gcs.wait_message("MISSION_ACK", since=mark)
         assert ack.type == mav.MAV_MISSION_NO_SPACE
         assert not gcs.messages("MISSION_REQUEST_INT", mark)
         assert _store(s).count == 4
-        # 151 items do fit, and survive the power cycle
-        square = [(47.3977 + i * 1e-5, 8.5455, 10.0) for i in range(151)]
+        # 75 items do fit, and survive the power cycle
+        square = [(47.3977 + i * 1e-5, 8.5455, 10.0) for i in range(75)]
         assert gcs.upload_mission(square, timeout_s=30) == mav.MAV_MISSION_ACCEPTED
     finally:
         s.close()
     s = _reopen_with_dataman(tmp_path)
     try:
-        assert _store(s).count == 151
+        assert _store(s).count == 75
     finally:
         s.close()
 

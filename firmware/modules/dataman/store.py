@@ -8,15 +8,20 @@ makes it the active mission.
 
 Persistence is a hook: any object with ``size``, ``read(offset, n)`` and ``write(offset, data)``
 (the FRAM ``waypoints`` partition, a :class:`~firmware.platform.params.MemoryPartition`). Only the
-active mission is written, as one record guarded by a CRC, so a power cut during a save leaves
-either the old or the new mission, never a mix that the navigator would fly.
+active mission is written, as one record guarded by a CRC-32, into one of two records that
+alternate (each half the partition), as the parameter store does and as PX4 alternates
+DM_KEY_WAYPOINTS_OFFBOARD_0/1: a save never touches the record holding the newest saved mission,
+and the valid record with the newer save number (wrap-safe,
+:func:`~firmware.platform.params.seq_newer`) wins at load. A power cut at any byte of a save
+therefore leaves either the old or the new mission, never a mix and never none.
 
-The partition bounds the mission: :attr:`MissionStore.capacity` items (151 in the FMUv2's 8 KiB
-waypoint partition), so the mission protocol can refuse a longer one before it is sent
-(MAV_MISSION_NO_SPACE, as PX4 does). A mission becomes active only once it is saved: a save that
-fails raises :class:`SaveError` and leaves the previous mission active, in memory and (as far
-as the partition still takes writes) in storage, so an accepted mission is always the one that
-comes back after a power cycle.
+The partition bounds the mission: :attr:`MissionStore.capacity` items, what one record (half the
+partition) holds: 75 in the FMUv2's 8 KiB waypoint partition. The FRAM's other half holds the
+parameters, so the partition cannot grow; real PX4 on FMUv2 keeps dataman on the SD card, and
+the demo's missions have 6-7 items. The mission protocol refuses a longer one before it is sent
+(MAV_MISSION_NO_SPACE, as PX4 does). A mission becomes active only once it is saved: a save
+that fails raises :class:`SaveError` and leaves the previous mission active, in memory and in
+storage, so an accepted mission is always the one that comes back after a power cycle.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from collections.abc import Callable, Iterable
 from typing import Any, Protocol
 
 from firmware.platform.msgdef import MessageRegistry, default_registry
+from firmware.platform.params import seq_newer
 
 __all__ = ["MAX_ITEMS", "MISSION_SLOTS", "MissionStore", "Partition", "SaveError", "StoreError"]
 
@@ -35,8 +41,12 @@ MISSION_SLOTS = 2
 #: most items one slot holds (PX4's DM_KEY_WAYPOINTS_OFFBOARD_0_MAX is 500 on FMUv2)
 MAX_ITEMS = 500
 
-_MAGIC = b"DMM1"
-_HEADER = struct.Struct("<4sBHiHI")  # magic, dataman_id, count, current_seq, counter, crc32
+_MAGIC = b"DMM2"
+#: magic, save number, dataman_id, count, current_seq, update counter, CRC-32 of the rest
+_HEADER = struct.Struct("<4sIBHiHI")
+_FIELDS = struct.Struct("<IBHiH")  # what the CRC covers before the items
+#: records in the partition, written in turn
+RECORDS = 2
 
 
 class StoreError(ValueError):
@@ -74,6 +84,10 @@ class MissionStore:
         self.update_counter = 0
         self.saves = 0
         self.save_failures = 0
+        #: save number of the newest record in the partition, and which record holds it
+        #: (None: no valid record yet, the next save goes to record 0)
+        self.save_seq = 0
+        self.newest_record: int | None = None
         #: called after the active mission or its current item changed (the module publishes
         #: the ``mission`` topic from here, as PX4's mavlink mission manager does)
         self.listeners: list[Callable[[], None]] = []
@@ -127,19 +141,19 @@ class MissionStore:
 
     @property
     def capacity(self) -> int:
-        """Most items a mission may have: what one record in the partition holds (and at most
-        :data:`MAX_ITEMS`, the slot size)."""
+        """Most items a mission may have: what one record (half the partition) holds, and at
+        most :data:`MAX_ITEMS`, the slot size."""
         part = self.partition
         if part is None:
             return MAX_ITEMS
-        return max(0, min(MAX_ITEMS, (part.size - _HEADER.size) // self._item_size))
+        return max(0, min(MAX_ITEMS, (self._record_bytes() - _HEADER.size) // self._item_size))
 
     def commit(self, dataman_id: int, count: int, current_seq: int = 0) -> None:
         """Make ``count`` items of slot ``dataman_id`` the active mission and save it.
 
         The new mission is saved first and activated only when the save succeeded; otherwise
-        :class:`SaveError` is raised, the old mission stays active and is written back (the
-        failed save may have overwritten part of its record).
+        :class:`SaveError` is raised and the old mission stays active (its record was not
+        touched: the save went to the other one).
         """
         slot = self._slot(dataman_id)
         if not 0 <= count <= len(slot):
@@ -151,8 +165,6 @@ class MissionStore:
         current_seq = current_seq if 0 <= current_seq < max(count, 1) else 0
         counter = (self.update_counter + 1) & 0xFFFF
         if not self._write_record(dataman_id, slot[:count], current_seq, counter):
-            self._write_record(self.dataman_id, self.items(), self.current_seq,
-                               self.update_counter)  # best effort: keep the old one stored
             raise SaveError("dataman: the mission could not be written to storage; "
                             "the previous mission stays active")
         del slot[count:]
@@ -199,6 +211,10 @@ class MissionStore:
     def record_size(self, count: int) -> int:
         return _HEADER.size + count * self._item_size
 
+    def _record_bytes(self) -> int:
+        """The size of each of the :data:`RECORDS` records (the partition split evenly)."""
+        return 0 if self.partition is None else self.partition.size // RECORDS
+
     def save(self) -> None:
         """Write the active mission to the partition (no-op without one); :class:`SaveError`
         if it does not fit or the write fails."""
@@ -208,7 +224,8 @@ class MissionStore:
 
     def _write_record(self, dataman_id: int, items: list[Any], current_seq: int,
                       counter: int) -> bool:
-        """One mission record into the partition; False (and counted) if it failed."""
+        """The mission into the record that does not hold the newest save; False (and
+        counted) if it failed, the newest record still the one a load finds."""
         part = self.partition
         if part is None:
             return True
@@ -217,38 +234,65 @@ class MissionStore:
         except (struct.error, OverflowError, ValueError):
             self.save_failures += 1  # a field the record cannot hold (no upload stores one)
             return False
-        if _HEADER.size + len(body) > part.size:
+        if _HEADER.size + len(body) > self._record_bytes():
             self.save_failures += 1
             return False
-        fields = (dataman_id, len(items), current_seq, counter)
-        crc = zlib.crc32(struct.pack("<BHiH", *fields) + body)
-        head = _HEADER.pack(_MAGIC, *fields, crc)
-        # Body first, header (holding the CRC over both) last: a cut save fails the CRC.
-        ok = bool(part.write(_HEADER.size, body)) if body else True
-        ok = ok and bool(part.write(0, head))
+        record = 0 if self.newest_record is None else (self.newest_record + 1) % RECORDS
+        seq = (self.save_seq + 1) & 0xFFFFFFFF
+        fields = (seq, dataman_id, len(items), current_seq, counter)
+        head = _HEADER.pack(_MAGIC, *fields, zlib.crc32(_FIELDS.pack(*fields) + body))
+        base = record * self._record_bytes()
+        ok = bool(part.write(base + _HEADER.size, body)) if body else True
+        ok = ok and bool(part.write(base, head))
+        if ok:
+            self.save_seq, self.newest_record = seq, record
         self.saves += ok
         self.save_failures += not ok
         return ok
 
-    def load(self) -> str:
-        """Read the mission saved in the partition; the message says what happened."""
+    def _read_record(self, record: int) -> tuple[tuple[int, int, int, int, int], bytes] | str:
+        """Record ``record``'s fields (save number, dataman_id, count, current_seq, counter)
+        and items, or why it holds no valid mission."""
         part = self.partition
-        if part is None:
-            return "no mission storage"
-        head = part.read(0, _HEADER.size)
+        assert part is not None
+        base = record * self._record_bytes()
+        head = part.read(base, _HEADER.size)
         if head is None or len(head) < _HEADER.size:
-            return "mission storage unreadable"
-        magic, dm, count, seq, counter, crc = _HEADER.unpack(head)
+            return "unreadable"
+        magic, seq, dm, count, cur, counter, crc = _HEADER.unpack(head)
         if magic != _MAGIC:
-            return "no mission stored"
-        if dm >= MISSION_SLOTS or self.record_size(count) > part.size:
-            return "stored mission header invalid; ignored"
-        body = part.read(_HEADER.size, count * self._item_size) if count else b""
+            return "empty"
+        if dm >= MISSION_SLOTS or self.record_size(count) > self._record_bytes():
+            return "header invalid"
+        body = part.read(base + _HEADER.size, count * self._item_size) if count else b""
+        fields = (seq, dm, count, cur, counter)
         if body is None or len(body) != count * self._item_size or \
-                zlib.crc32(struct.pack("<BHiH", dm, count, seq, counter) + body) != crc:
-            return "stored mission corrupt (CRC); ignored"
+                zlib.crc32(_FIELDS.pack(*fields) + body) != crc:
+            return "corrupt (CRC)"
+        return fields, body
+
+    def load(self) -> str:
+        """Read the newest valid mission saved in the partition; the message says what
+        happened (a damaged record is named, the other one still loads)."""
+        if self.partition is None:
+            return "no mission storage"
+        best: tuple[int, tuple[int, int, int, int, int], bytes] | None = None
+        problems = []
+        for record in range(RECORDS):
+            got = self._read_record(record)
+            if isinstance(got, str):
+                if got != "empty":
+                    problems.append(f"record {record} {got}")
+                continue
+            if best is None or seq_newer(got[0][0], best[1][0]):
+                best = (record, *got)
+        note = f" ({', '.join(problems)}; ignored)" if problems else ""
+        if best is None:
+            return ("no mission stored" if not problems else "no valid mission stored") + note
+        record, (seq, dm, count, cur, counter), body = best
         size = self._item_size
         self.slots[dm] = [self.item_cls.unpack(body[i * size:(i + 1) * size])
                           for i in range(count)]
-        self.dataman_id, self.count, self.current_seq, self.update_counter = dm, count, seq, counter
-        return f"mission of {count} items loaded"
+        self.dataman_id, self.count, self.current_seq, self.update_counter = dm, count, cur, counter
+        self.save_seq, self.newest_record = seq, record
+        return f"mission of {count} items loaded" + note
