@@ -10,15 +10,19 @@ the bytes decoded must match the length field, as PX4 requires.
 from __future__ import annotations
 
 import struct
+from typing import Final
 
 from mypy_extensions import mypyc_attr
 
-__all__ = ["BsonError", "encode", "decode", "INT32", "DOUBLE"]
+__all__ = ["BsonError", "encode", "decode", "INT32", "DOUBLE", "INT32_MIN", "INT32_MAX"]
 
 DOUBLE, STRING, BINDATA, BOOL, INT32, INT64, END, ERASED = 0x01, 0x02, 0x05, 0x08, 0x10, 0x12, \
     0x00, 0xFF
 MAX_NAME = 32
-INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
+#: The range of an INT32 element, and of an INT32 parameter (params.py imports these; so may
+#: any module that needs the C int32_t limits).
+INT32_MIN: Final = -0x80000000
+INT32_MAX: Final = 0x7FFFFFFF
 
 _I32 = struct.Struct("<i")
 _FIXED: dict[int, struct.Struct] = {INT32: _I32, DOUBLE: struct.Struct("<d"),
@@ -34,9 +38,9 @@ def encode(values: dict[str, int | float]) -> bytes:
     """Encode ``{name: value}`` (int -> INT32, float -> DOUBLE) in the given order."""
     out = bytearray(4)
     for name, value in values.items():
-        raw = name.encode("ascii", "replace")
-        if len(raw) >= MAX_NAME or b"\0" in raw or not name.isascii():
+        if not name.isascii() or "\0" in name or len(name) >= MAX_NAME:
             raise BsonError(f"parameter name {name!r} too long or not ASCII")
+        raw = name.encode("ascii")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise BsonError(f"parameter {name}: value {value!r} is neither int nor float")
         if isinstance(value, int):

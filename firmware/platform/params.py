@@ -15,8 +15,9 @@ parameters are rounded to float32 on every set, so a value survives BSON (double
 
 Storage (see docs/parameters.md for the byte layout): the FRAM ``params`` partition holds two
 slots; each slot is a 16-byte header (magic, sequence number, length, CRC-32) followed by the
-PX4-format BSON document. A save writes the slot not holding the newest valid copy, so a power
-cut during a save leaves the previous copy intact: at most the change being saved is lost.
+PX4-format BSON document. A save writes the slot not holding the newest copy that loads (CRC
+and document both good), so a power cut during a save leaves that copy intact: at most the
+change being saved is lost.
 Nothing unverified is read at boot: a bare PX4 document (what real PX4 keeps at offset 0) is
 imported on request with ``param load FILE`` (:meth:`Params.load_document`).
 """
@@ -28,19 +29,20 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol, overload
+from typing import TYPE_CHECKING, Any, Callable, Final, Iterable, Literal, Protocol, overload
 
 from mypy_extensions import mypyc_attr
 
 from firmware.platform import bson
+from firmware.platform.bson import INT32_MAX, INT32_MIN
 
 if TYPE_CHECKING:
     from firmware.platform import Platform
 
 __all__ = ["ParamDef", "Params", "ParamError", "ParamStorage", "MemoryPartition",
-           "export_qgc", "import_qgc", "markdown_reference"]
+           "export_qgc", "import_qgc", "markdown_reference", "f32", "FLT_MAX", "INT32_MIN",
+           "INT32_MAX"]
 
-INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 6, 9
 
 
@@ -49,8 +51,9 @@ class ParamError(ValueError):
     pass
 
 
-#: the largest finite float32; larger magnitudes round to infinity on the STM32
-FLT_MAX = 3.4028234663852886e38
+#: The largest finite float32 (C's FLT_MAX); larger magnitudes round to infinity on the STM32.
+#: The one definition: other modules import it from here.
+FLT_MAX: Final = 3.4028234663852886e38
 
 
 def f32(x: Any, name: str = "value") -> float:
@@ -150,6 +153,9 @@ _HEADER = struct.Struct("<4sIII")  # magic, sequence, document length, CRC-32
 _SEQ_MOD = 1 << 32
 _ERASED = "erased"
 
+#: How a load is reported on the console: the severity of its dmesg line.
+LogLevel = Literal["info", "warn", "error"]
+
 
 def seq_newer(a: int, b: int) -> bool:
     """Whether save number ``a`` is newer than ``b`` in 32-bit serial-number arithmetic
@@ -201,55 +207,66 @@ class ParamStorage:
             return f"save #{seq}: CRC mismatch (a save cut short, or a damaged copy)"
         return seq, doc
 
-    def _valid_newest_first(self) -> tuple[list[tuple[int, int, bytes]], dict[int, str]]:
-        """The valid slots as (sequence, slot, document), newest first, and why the others
-        are not valid; remembers the newest so that the next save goes to the other slot."""
-        valid: list[tuple[int, int, bytes]] = []
+    def _scan(self) -> tuple[list[tuple[int, int, dict]], dict[int, str]]:
+        """The slots that load, as (sequence, slot, values), newest first, and why the others
+        do not. A slot whose CRC checks out but whose document does not decode does not load.
+
+        Remembers where the next save goes: ``last_slot`` is the newest slot that loads, so
+        the save overwrites the other one and never the only good copy; ``sequence`` is the
+        newest save number seen in any slot with a good CRC, so the next save is newer than
+        every copy, the undecodable one included."""
+        loaded: list[tuple[int, int, dict]] = []
         invalid: dict[int, str] = {}
+        newest: int | None = None
         for slot in (0, 1):
             r = self._read_slot(slot)
             if isinstance(r, str):
                 invalid[slot] = r
-            else:
-                valid.append((r[0], slot, r[1]))
-        if len(valid) == 2 and seq_newer(valid[1][0], valid[0][0]):
-            valid.reverse()
-        if valid:
-            self.sequence, self.last_slot = valid[0][0], valid[0][1]
-        self._scanned = True
-        return valid, invalid
-
-    def load(self) -> tuple[dict | None, str, str]:
-        """(values or None, message, level "info" | "warn" | "error"). None means: use the
-        defaults; the message says why. Loading from anything but the newest save, or with a
-        damaged slot beside the good one, is a warning naming the slot and the reason."""
-        valid, invalid = self._valid_newest_first()
-        problems = [f"slot {s}: {why}" for s, why in invalid.items() if why != _ERASED]
-        for seq, slot, doc in valid:
+                continue
+            seq, doc = r
+            if newest is None or seq_newer(seq, newest):
+                newest = seq
             try:
                 values = bson.decode(doc)
             except bson.BsonError as exc:  # CRC passed but the content is not ours
-                problems.append(f"slot {slot}: save #{seq} does not decode ({exc})")
+                invalid[slot] = f"save #{seq} does not decode ({exc})"
                 continue
+            loaded.append((seq, slot, values or {}))
+        if len(loaded) == 2 and seq_newer(loaded[1][0], loaded[0][0]):
+            loaded.reverse()
+        if newest is not None:
+            self.sequence = newest
+        self.last_slot = loaded[0][1] if loaded else None
+        self._scanned = True
+        return loaded, invalid
+
+    def load(self) -> tuple[dict | None, str, LogLevel]:
+        """(values or None, message, level). None means: use the defaults; the message says
+        why. Loading from anything but the newest save, or with a damaged slot beside the
+        good one, is a warning naming the slot and the reason."""
+        loaded, invalid = self._scan()
+        problems = [f"slot {s}: {why}" for s, why in invalid.items() if why != _ERASED]
+        if loaded:
+            seq, slot, values = loaded[0]
             msg = f"parameters loaded from slot {slot} (save #{seq})"
             if problems:
-                return values or {}, (f"{'; '.join(problems)}; {msg}, the last good copy: "
-                                      f"the newest save may be lost"), "warn"
+                return values, (f"{'; '.join(problems)}; {msg}, the last good copy: "
+                                f"the newest save may be lost"), "warn"
             empty = [s for s, why in invalid.items() if why == _ERASED]
-            return values or {}, msg + ("; the other slot is empty" if empty else ""), "info"
+            return values, msg + ("; the other slot is empty" if empty else ""), "info"
         if not problems:
             return None, "no parameters stored (erased FRAM); defaults loaded", "warn"
         return None, f"parameter store corrupt ({'; '.join(problems)}); defaults loaded", "error"
 
     def save(self, values: dict[str, int | float]) -> tuple[bool, str]:
-        """Write the slot not holding the newest valid copy: the document first, the header
+        """Write the slot not holding the newest copy that loads: the document first, the header
         (with the CRC over both) last, so a power cut at any byte keeps the previous copy."""
         doc = bson.encode(values)
         if len(doc) > self.slot_size - _HEADER.size:
             return False, (f"parameter document of {len(doc)} bytes does not fit a slot of "
                            f"{self.slot_size - _HEADER.size}")
-        if not self._scanned:  # never loaded: do not overwrite a newer copy blindly
-            self._valid_newest_first()
+        if not self._scanned:  # never loaded: do not overwrite a good copy blindly
+            self._scan()
         slot = 0 if self.last_slot in (None, 1) else 1
         seq = (self.sequence + 1) % _SEQ_MOD
         body = struct.pack("<II", seq, len(doc)) + doc
@@ -384,8 +401,8 @@ class Params:
             self.platform.error("param", "load: no parameter storage")
             return False
         values, msg, level = self.storage.load()
-        log = {"info": self.platform.info, "warn": self.platform.warn}.get(level,
-                                                                           self.platform.error)
+        log = {"info": self.platform.info, "warn": self.platform.warn,
+               "error": self.platform.error}[level]
         if not merge:
             for n in self.names:
                 self.values[n] = self.defs[n].default

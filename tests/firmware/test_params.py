@@ -1,7 +1,5 @@
 """Parameters: metadata, types, change notification, crash-safe storage, QGC files."""
 
-import contextlib
-import signal
 import struct
 import zlib
 
@@ -19,16 +17,8 @@ from firmware.platform.params import (
     markdown_reference,
 )
 from firmware.platform.uorb import Subscription
-
-DEFS = [
-    ParamDef("SYS_AUTOSTART", "INT32", 0, group="System", short="Airframe",
-             reboot_required=True),
-    ParamDef("MC_ROLL_P", "FLOAT", 6.5, min=0.0, max=12.0, group="MC Attitude",
-             short="Roll P gain", decimals=2),
-    ParamDef("MC_PITCH_P", "FLOAT", 6.5, min=0.0, max=12.0, group="MC Attitude"),
-    ParamDef("COM_RC_LOSS_T", "FLOAT", 0.5, unit="s", group="Commander"),
-    ParamDef("COM_ARM_WO_GPS", "INT32", 1, values={0: "Deny", 1: "Allow"}, group="Commander"),
-]
+from tests.helpers import PARAM_DEFS as DEFS
+from tests.helpers import terminates
 
 
 def make(platform, partition=None, **kw):
@@ -166,6 +156,19 @@ class Recorder:
         return self.base.write(offset, data)
 
 
+def cut_images(before, writes):
+    """(cut, image) for a power cut before each byte of ``writes`` (and after the last): the
+    partition ``before`` with the first ``cut`` bytes written."""
+    stream = [(off + i, b) for off, data in writes for i, b in enumerate(data)]
+    assert len(stream) > 30
+    for cut in range(len(stream) + 1):
+        image = MemoryPartition()
+        image.data[:] = before
+        for addr, b in stream[:cut]:
+            image.data[addr] = b
+        yield cut, image
+
+
 def test_power_cut_at_every_byte_of_a_save_keeps_old_or_new(platform):
     base = MemoryPartition()
     p = make(platform, base)
@@ -180,14 +183,8 @@ def test_power_cut_at_every_byte_of_a_save_keeps_old_or_new(platform):
     assert q.load() and q["MC_ROLL_P"] == 4.0
     q.set("MC_ROLL_P", 3.0, notify=False)
     assert q.save()
-    stream = [(off + i, b) for off, data in rec.writes for i, b in enumerate(data)]
-    assert len(stream) > 30
     outcomes = set()
-    for cut in range(len(stream) + 1):
-        image = MemoryPartition()
-        image.data[:] = before
-        for addr, b in stream[:cut]:
-            image.data[addr] = b
+    for cut, image in cut_images(before, rec.writes):
         r = make(platform, image)
         assert r.load(), f"store unreadable after a cut at byte {cut}"
         assert r["MC_ROLL_P"] in (4.0, 3.0), f"cut at byte {cut} gave {r['MC_ROLL_P']}"
@@ -234,20 +231,6 @@ def test_bad_declarations_rejected():
 
 # -- robustness (issue 18): reproducers of the defects fuzzing found -----------------------------
 
-@contextlib.contextmanager
-def _within(seconds):
-    """Fail (instead of hanging the suite) if the block takes longer than ``seconds``."""
-    def expire(_sig, _frame):
-        raise TimeoutError(f"still running after {seconds} s")
-    old = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
 @pytest.mark.parametrize("data", [
     bytes.fromhex("0c000000 02 41 00 f9ffffff 00"),            # STRING, -7: looped for ever
     bytes.fromhex("0c000000 05 41 00 ecffffff 00"),            # BINDATA, -20: looped too
@@ -258,7 +241,7 @@ def _within(seconds):
 ], ids=["string-loop", "bindata-loop", "index-error", "string-garbage", "bindata-garbage",
         "past-the-end"])
 def test_bson_negative_or_oversized_lengths_are_errors(data):
-    with _within(2.0):
+    with terminates(2.0):
         with pytest.raises(bson.BsonError):
             bson.decode(data)
 
@@ -267,7 +250,7 @@ def test_twelve_byte_image_no_longer_hangs_the_load(platform):
     part = MemoryPartition()
     part.write(0, bytes.fromhex("0c000000 02 41 00 f9ffffff 00"))
     p = make(platform, part)
-    with _within(2.0):
+    with terminates(2.0):
         assert not p.load()
     assert p.values == {d.name: d.default for d in DEFS}
 
@@ -307,12 +290,14 @@ def test_qgc_import_with_an_overflowing_value_applies_the_rest(platform):
     assert sub.update() is not None  # what was applied is announced (and autosaved)
 
 
-def _slot_image(values_doc, seq=1):
-    """A partition whose slot 0 holds ``values_doc`` (raw BSON bytes) with a valid header."""
-    part = MemoryPartition()
+def _slot_image(values_doc, seq=1, slot=0, part=None):
+    """A partition (``part`` or a new one) whose ``slot`` holds ``values_doc`` (raw BSON
+    bytes) under a valid header: the CRC checks out whatever the document says."""
+    part = MemoryPartition() if part is None else part
+    base = slot * (part.size // 2)
     body = struct.pack("<II", seq, len(values_doc)) + values_doc
-    part.write(16, values_doc)
-    part.write(0, struct.pack("<4sIII", b"PRM1", seq, len(values_doc), zlib.crc32(body)))
+    part.write(base + 16, values_doc)
+    part.write(base, struct.pack("<4sIII", b"PRM1", seq, len(values_doc), zlib.crc32(body)))
     return part
 
 
@@ -355,3 +340,29 @@ def test_falling_back_to_the_older_slot_is_a_warning(platform):
     assert q.load() and q["MC_ROLL_P"] == 5.0
     t, sev, mod, text = platform.dmesg[-1]
     assert sev == 4 and "slot 1" in text and "slot 0" in text and "CRC" in text, text
+
+
+def test_a_save_after_falling_back_never_overwrites_the_only_good_copy(platform):
+    # Slot 1 is the newest save and its CRC checks out, but its document does not decode (the
+    # twelve bytes that used to hang the decoder): the load falls back to slot 0. The next
+    # save must go to slot 1, the damaged one: it used to go to slot 0, so a power cut during
+    # it lost every parameter.
+    good = bson.encode({"MC_ROLL_P": 5.0, "SYS_AUTOSTART": 4001})
+    part = _slot_image(good, seq=7, slot=0)
+    _slot_image(bytes.fromhex("0c000000 02 41 00 f9ffffff 00"), seq=8, slot=1, part=part)
+    before = bytes(part.data)
+    rec = Recorder(MemoryPartition())
+    rec.base.data[:] = before
+    q = make(platform, rec)
+    assert q.load() and q["MC_ROLL_P"] == 5.0
+    assert "slot 1: save #8 does not decode" in platform.dmesg[-1][3]
+    q.set("COM_RC_LOSS_T", 2.0, notify=False)
+    assert q.save()
+    assert q.storage.last_slot == 1 and q.storage.sequence == 9  # newer than both
+    outcomes = set()
+    for cut, image in cut_images(before, rec.writes):
+        r = make(platform, image)
+        assert r.load(), f"store unreadable after a cut at byte {cut}"
+        assert (r["MC_ROLL_P"], r["SYS_AUTOSTART"]) == (5.0, 4001), f"cut at byte {cut}"
+        outcomes.add(r["COM_RC_LOSS_T"])
+    assert outcomes == {0.5, 2.0}  # the old copy, then (the save complete) the new one

@@ -1,0 +1,44 @@
+"""Helpers that more than one test module uses: a watchdog that turns a hang into a failure,
+and a small parameter set for the parameter tests and fuzz targets.
+
+They live here, with public names, so that no test module imports another's privates.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+from typing import Iterator
+
+from firmware.platform.params import ParamDef
+
+__all__ = ["PARAM_DEFS", "terminates"]
+
+#: A few parameters of both types, with a range, a unit and an enumeration: enough to reach
+#: every path of the parameter store without booting a board.
+PARAM_DEFS = [
+    ParamDef("SYS_AUTOSTART", "INT32", 0, group="System", short="Airframe",
+             reboot_required=True),
+    ParamDef("MC_ROLL_P", "FLOAT", 6.5, min=0.0, max=12.0, group="MC Attitude",
+             short="Roll P gain", decimals=2),
+    ParamDef("MC_PITCH_P", "FLOAT", 6.5, min=0.0, max=12.0, group="MC Attitude"),
+    ParamDef("COM_RC_LOSS_T", "FLOAT", 0.5, unit="s", group="Commander"),
+    ParamDef("COM_ARM_WO_GPS", "INT32", 1, values={0: "Deny", 1: "Allow"}, group="Commander"),
+]
+
+
+@contextlib.contextmanager
+def terminates(seconds: float = 2.0) -> Iterator[None]:
+    """Fail with TimeoutError (instead of hanging the suite) if the block runs longer than
+    ``seconds`` of wall time: a decoder or loader that loops is the worst kind of bug here.
+
+    Uses SIGALRM, so it works in the main thread of the test process only (as pytest runs)."""
+    def expire(_sig: int, _frame: object) -> None:
+        raise TimeoutError(f"still running after {seconds} s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
