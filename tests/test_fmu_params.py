@@ -4,6 +4,7 @@ FRAM image gives the defaults with a clear message."""
 import pytest
 
 from board.fmu_v2 import FmuV2Board
+from tests.helpers import terminates
 
 BOOTED = 1_500_000_000
 
@@ -52,10 +53,8 @@ def test_the_mpu6000_reads_its_fifo_at_imu_gyro_ratemax(tmp_path):
 def test_a_twelve_byte_fram_image_boots_with_defaults(tmp_path):
     # A STRING element of length -7 at offset 0 used to hang the boot for ever (the loader
     # decoded a bare document when neither slot was valid, and the decoder looped).
-    from tests.firmware.test_params import _within
-
     (tmp_path / "fram.bin").write_bytes(bytes.fromhex("0c000000 02 41 00 f9ffffff 00"))
-    with _within(60.0):
+    with terminates(60.0):
         b = boot(tmp_path)
     errors = [line[3] for line in b.platform.dmesg if line[1] <= 3 and line[2] == "param"]
     assert errors and "defaults loaded" in errors[0]

@@ -237,9 +237,10 @@ def test_bad_declarations_rejected():
     bytes.fromhex("0c000000 02 41 00 18fcffff 00"),            # STRING, -1000: IndexError
     bytes.fromhex("11000000 02 41 00 ecffffff 00 00000000 00"),  # -20: read as {'A': ''}
     bytes.fromhex("10000000 05 41 00 ecffffff 00 000000 00"),  # BINDATA -20: {'A': b''}
+    # a regression guard, not a reproducer: the old decoder refused this one too
     bytes.fromhex("0e000000 02 41 00 ffffff7f 00 00 00"),      # a length past the document
 ], ids=["string-loop", "bindata-loop", "index-error", "string-garbage", "bindata-garbage",
-        "past-the-end"])
+        "past-the-end-guard"])
 def test_bson_negative_or_oversized_lengths_are_errors(data):
     with terminates(2.0):
         with pytest.raises(bson.BsonError):
