@@ -13,6 +13,7 @@ from functools import lru_cache
 from typing import Any
 
 from firmware.platform.params import ParamDef, ParamError
+from firmware.shell.parser import MAX_LINE_CHARS
 from hil.faults import CATALOGUE, FaultError, get_kind
 from hil.scenarios.document import (MAX_FILE_BYTES, ScenarioError, check_shape, parse_yaml,
                                     short_repr as _r)
@@ -42,10 +43,10 @@ MAX_ALT_M = 10_000.0
 MAX_DISTANCE_M = 100_000.0
 #: seeds are handed to numpy's generators, which take 0..2**32-1
 MAX_SEED = (1 << 32) - 1
-
-
 #: longest virtual time a scenario may name (a day): a bound that keeps times finite
 MAX_SECONDS = 86_400.0
+
+
 @dataclass
 class Step:
     kind: str                       # one of STEP_KINDS
@@ -282,6 +283,21 @@ def _gcs(v: Any, where: str) -> dict[str, Any]:
     return {"cmd": cmd, "arg": arg}
 
 
+def _shell_line(v: Any, where: str) -> str:
+    """A shell step's command: one console line as nsh takes it, at most MAX_LINE_CHARS
+    characters (nsh refuses a longer one) and without a line end (which would make it two
+    commands, the second run unseen by the step's status)."""
+    if not isinstance(v, str) or not v.strip():
+        raise ScenarioError(f"{where}: an nsh command line, got {_r(v)}")
+    if "\n" in v or "\r" in v:
+        raise ScenarioError(f"{where}: one line, without a line end (got {_r(v)}); "
+                            f"write one shell step per command")
+    if len(v) > MAX_LINE_CHARS:
+        raise ScenarioError(f"{where}: a command line of {len(v)} characters; nsh takes at "
+                            f"most {MAX_LINE_CHARS}")
+    return v
+
+
 def _wait(v: Any, where: str) -> dict[str, Any]:
     if not isinstance(v, dict):
         return {"for": _num(v, where)}
@@ -330,9 +346,7 @@ def _step(i: int, raw: Any) -> Step:
             if not isinstance(may_fail, bool):
                 raise ScenarioError(f"{w}.may_fail: true or false")
             val = val.get("run")
-        if not isinstance(val, str) or not val.strip():
-            raise ScenarioError(f"{w}: an nsh command line")
-        arg = {"run": val, "may_fail": may_fail}
+        arg = {"run": _shell_line(val, w), "may_fail": may_fail}
     elif kind == "ready":
         arg = {"within": _num((val or {}).get("within", 60) if isinstance(val, dict) else
                               (val if val is not None else 60), w)}

@@ -180,3 +180,19 @@ def test_cli_reports_a_bomb_and_a_nan_duration_without_a_traceback(tmp_path, cap
         assert main(["scenario", str(p)]) == 2
         err = capsys.readouterr().err
         assert err.startswith(f"hil scenario: {p}: ") and "Traceback" not in err
+
+
+@pytest.mark.parametrize("run, message", [
+    ("param show " + "X" * 117, "128 characters"),      # 128: one past nsh's 127
+    ("param set A 1\nreboot", "one line"),               # a second command hidden in the step
+    ({"run": "param save\rreboot", "may_fail": True}, "one line"),
+])
+def test_shell_steps_longer_than_a_console_line_are_load_errors(run, message):
+    # nsh refuses a line of more than 127 characters (MAX_LINE_CHARS), and a line end makes
+    # two commands of one step: both are refused when the file loads, not minutes into a run.
+    data = {**GOOD, "timeline": [{"shell": run}, *GOOD["timeline"]]}
+    with pytest.raises(ScenarioError, match=message) as err:
+        scenario_from_dict(data, "demo.yaml")
+    assert str(err.value).startswith("demo.yaml: timeline[0].shell")
+    fits = {**GOOD, "timeline": [{"shell": "param show " + "X" * 116}, *GOOD["timeline"]]}
+    assert len(scenario_from_dict(fits).timeline[0].arg["run"]) == 127  # nsh's limit: loads
