@@ -18,6 +18,7 @@ Two write paths, as in the firmware (``registers_set``):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -220,13 +221,20 @@ ADC_RSSI = 5  #: IOv2 ADC channel of the analog RSSI input (PA5)
 
 
 def _float_to_u16(value: float) -> int:
-    """A C float stored into a uint16_t register: truncated toward zero; out of range (undefined
-    in C) saturates and NaN gives 0, as the STM32F100's soft-float conversion does. [?]"""
-    if value != value or value <= 0.0:
+    """A C float stored into a uint16_t register, as the IO's code does it.
+
+    The STM32F100 has no FPU: GCC converts ``float -> uint16_t`` with libgcc's soft-float
+    ``__aeabi_f2uiz`` (alias ``__fixunssfsi``, libgcc/config/arm/ieee754-sf.S, read in GCC's
+    source): a value with the sign bit set (negative, -0, -inf) or a NaN gives 0, a value of
+    2**32 or more (and +inf) gives 0xFFFFFFFF, anything else is truncated toward zero; the
+    uint32 is then narrowed to the register's 16 bits (the low half). Out of range this is
+    undefined in C; this is what that code does. The model takes the value as it computed it
+    (a double); the float32 rounding of the IO's arithmetic is not modelled."""
+    if math.isnan(value) or value < 0.0:
         return 0
-    if value >= 65535.0:
-        return 0xFFFF
-    return int(value)
+    if value >= 4294967296.0:
+        return 0xFFFF  # 0xFFFFFFFF, narrowed
+    return int(value) & 0xFFFF
 
 
 class RegisterFile:
@@ -428,7 +436,8 @@ class RegisterFile:
         with ``O: ... 500000`` gives 50.0 and a failsafe of 31500 us, and a failsafe output then
         drives the timer's compare register with it (a pulse longer than the PWM period: the
         pin stays high). The float-to-uint16 conversion of a value outside 0..65535 is undefined
-        in C; modelled as saturation, NaN as 0 (the soft-float __aeabi_f2uiz). [?]
+        in C; modelled as the soft-float code does it (:func:`_float_to_u16`): negative or NaN
+        gives 0, 70000 gives 4464 (the low 16 bits), 2**32 or more 0xFFFF.
         """
         if self.arming & Arming.FAILSAFE_CUSTOM or not self.status_flags & StatusFlags.MIXER_OK:
             return

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from ioproc.mixer import encode_mixer_upload
-from ioproc.pages import PAGE_TABLES, IoHooks, RegisterFile
+from ioproc.pages import PAGE_TABLES, IoHooks, RegisterFile, _float_to_u16
 from ioproc.protocol import (
     ERA,
     Alarms,
@@ -307,7 +307,10 @@ def test_mixer_failsafe_is_not_clamped_as_on_the_real_io(io: Io) -> None:
     assert io.regs.status_flags & StatusFlags.MIXER_OK
     assert io.values(PageNo.FAILSAFE_PWM) == (31500,) + (0,) * 7
     upload(io, "M: 0\nO: 10000 10000 -500000 -500000 10000\n")
-    assert io.values(PageNo.FAILSAFE_PWM) == (0,) * 8  # -28500 saturates at 0
+    assert io.values(PageNo.FAILSAFE_PWM) == (0,) * 8  # -28500: a negative float gives 0
+    # 70000.02 converts to the uint32 70000, then keeps its low 16 bits: 70000 - 65536
+    upload(io, "M: 0\nO: 10000 10000 1141667 -10000 1141667\n")
+    assert io.values(PageNo.FAILSAFE_PWM)[0] == 4464
     # 10**40 - 1 is read as the int sscanf stores: -1 (mod 2**32), i.e. offset -0.0001
     upload(io, "M: 0\nO: 10000 10000 " + "9" * 40 + " -10000 " + "9" * 40 + "\n")
     assert io.regs.status_flags & StatusFlags.MIXER_OK
@@ -324,3 +327,15 @@ def test_mixer_failsafe_of_a_nan_or_infinite_output_never_raises(io: Io) -> None
                                                    max_output=math.inf), ()))
         io.regs.update_mixer_failsafe()
         assert io.values(PageNo.FAILSAFE_PWM)[0] == want
+
+
+@pytest.mark.parametrize("value, stored", [
+    (1500.9, 1500), (0.0, 0), (-0.0, 0), (0.99, 0), (-0.5, 0), (-28500.0, 0),
+    (65535.0, 65535), (65536.0, 0), (70000.02, 4464), (2.0 ** 32 - 1, 0xFFFF),
+    (2.0 ** 31 + 7, 7), (2.0 ** 32, 0xFFFF), (1e39, 0xFFFF), (math.inf, 0xFFFF),
+    (-math.inf, 0), (math.nan, 0), (-math.nan, 0),
+])
+def test_failsafe_float_to_uint16_is_the_soft_float_conversion_then_truncation(value, stored):
+    """The IO's ``uint16_t = float`` is libgcc's __aeabi_f2uiz (negative or NaN: 0; 2**32 or
+    more: 0xFFFFFFFF; else toward zero), then the low 16 bits."""
+    assert _float_to_u16(value) == stored
