@@ -4,13 +4,14 @@ the FMU's px4io receive path."""
 from __future__ import annotations
 
 import math
+import struct
 from pathlib import Path
 
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ioproc.mixer import (MixerGroup, MixerParseError, encode_mixer_upload, filter_mixer_file,
-                          load_from_buf, parse_mixer_text)
+from ioproc.mixer import (MixerGroup, MixerParseError, MixerUpload, encode_mixer_upload,
+                          filter_mixer_file, load_from_buf, parse_mixer_text)
 from ioproc.pages import RegisterFile
 from ioproc.protocol import (LAYOUT, PKT_COUNT_MASK, PageNo, ProtocolError, decode_reply,
                              encode_write, handle_request)
@@ -51,17 +52,21 @@ def _controls(values: list[float]):
 @fuzz(examples=500)
 @given(mixer_texts(), st.lists(st.floats(-1.0, 1.0), min_size=1, max_size=8))
 def test_mixer_text_parses_or_is_refused_and_mixes_finite(text: str, controls) -> None:
-    """Invariant: the strict parser (FMU filter + IO rules) gives mixers or MixerParseError
-    with a line number; the IO's buffer parser never raises and consumes what it says; every
-    mixer's outputs for controls in [-1, 1] are finite."""
-    try:
-        mixers = parse_mixer_text(text)
-    except MixerParseError as err:
-        assert err.line >= 1
-        mixers = []
-    buf_mixers, resid, _ = load_from_buf(filter_mixer_file(text))
-    assert 0 <= resid <= len(filter_mixer_file(text))
-    for group_mixers in (mixers, buf_mixers):
+    """Invariant: the strict parser (FMU filter + IO rules, filtered or not) gives mixers or
+    MixerParseError with a line number; the IO's buffer parser never raises and consumes what
+    it says, on the filtered text and on the raw one; every mixer's outputs for controls in
+    [-1, 1] are finite."""
+    groups = []
+    for filtered in (True, False):
+        try:
+            groups.append(parse_mixer_text(text, filtered=filtered))
+        except MixerParseError as err:
+            assert err.line >= 1
+    for buf in (filter_mixer_file(text), text):
+        buf_mixers, resid, _ = load_from_buf(buf)
+        assert 0 <= resid <= len(buf)
+        groups.append(buf_mixers)
+    for group_mixers in groups:
         group = MixerGroup()
         for m in group_mixers:
             group.add(m)
@@ -82,6 +87,52 @@ def test_mixer_upload_in_chunks_keeps_registers_in_range(text: str, max_transfer
         handle_request(encode_write(PageNo.MIXERLOAD, 0, words), regs, 0)
         assert len(regs.mixer.text) < 256
     assert all(0 <= v <= 0xFFFF for v in regs.values[PageNo.FAILSAFE_PWM])
+
+
+@st.composite
+def page52_writes(draw: st.DrawFn) -> list[list[int]]:
+    """Page-52 writes as any sender could make them: a real mixer's upload with chunks
+    dropped, repeated or reordered and magic, action or text bytes changed, or random chunks
+    (good or bad magic, any action byte, odd lengths)."""
+    if draw(st.booleans()):
+        chunks = [struct.pack(f"<{len(w)}H", *w) for w in encode_mixer_upload(
+            draw(st.sampled_from(MIXERS)), draw(st.integers(8, 64)))]
+        for _ in range(draw(st.integers(1, 4))):
+            i = draw(st.integers(0, len(chunks) - 1))
+            how = draw(st.sampled_from(["drop", "repeat", "swap", "flip"]))
+            if how == "drop" and len(chunks) > 1:
+                del chunks[i]
+            elif how == "repeat":
+                chunks.insert(i, chunks[i])
+            elif how == "swap":
+                j = draw(st.integers(0, len(chunks) - 1))
+                chunks[i], chunks[j] = chunks[j], chunks[i]
+            else:  # a bit of the magic, the action or the text
+                chunk = bytearray(chunks[i])
+                bit = draw(st.integers(0, len(chunk) * 8 - 1))
+                chunk[bit // 8] ^= 1 << (bit % 8)
+                chunks[i] = bytes(chunk)
+    else:
+        chunks = [(b"\x74\x6d" if good else draw(st.binary(min_size=2, max_size=2)))
+                  + bytes((action,)) + text
+                  for good, action, text in draw(st.lists(st.tuples(
+                      st.booleans(), st.integers(0, 255), st.binary(max_size=59)), max_size=12))]
+    padded = [c + b"\0" * (len(c) % 2) for c in chunks]  # whole registers, as the FMU sends
+    return [list(struct.unpack(f"<{len(c) // 2}H", c)) for c in padded]
+
+
+@fuzz(examples=400)
+@given(page52_writes())
+def test_mixer_upload_of_any_chunks_keeps_the_buffer_bounded(writes: list[list[int]]) -> None:
+    """Invariant: any sequence of page-52 writes (bad magic, unknown actions, appends without
+    a reset, chunks out of order) is taken or ignored without raising; the IO's text buffer
+    stays under its 256 bytes; the loaded mixers mix finite outputs."""
+    upload = MixerUpload()
+    for words in writes:
+        upload.handle(words)
+        assert len(upload.text) < 256
+    outputs = upload.group.mix(_controls([0.3, -0.2, 0.1, 0.6]), 8)
+    assert len(outputs) <= 8 and all(math.isfinite(o) for o in outputs)
 
 
 @fuzz(examples=800)

@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from ioproc.mixer import (
     GEOMETRIES,
@@ -223,38 +221,6 @@ def test_upload_ignores_bad_magic_and_short_payloads() -> None:
     upload = MixerUpload()
     assert upload.handle([0x1234, 0x0A00]).mixer_ok is None
     assert upload.handle([0x6D74]).mixer_ok is None
-
-
-_MIXER_ALPHABET = st.sampled_from(list("RMSZO:0123456789 -+\n\r\0x4") + ["4x", "10000"])
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.lists(_MIXER_ALPHABET, max_size=60).map("".join))
-def test_fuzz_parser_never_crashes(text: str) -> None:
-    mixers, resid, _ = load_from_buf(text)
-    assert 0 <= resid <= len(text)
-    try:
-        parse_mixer_text(text, filtered=False)
-    except MixerParseError as err:
-        assert err.line >= 1
-    group = MixerGroup()
-    for mixer in mixers:
-        group.add(mixer)
-    outputs = group.mix(controls(0.3, -0.2, 0.1, 0.6), 8)
-    assert len(outputs) <= 8 and all(isinstance(o, float) for o in outputs)
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(st.booleans(), st.integers(0, 2), st.binary(max_size=59)),
-                max_size=12))
-def test_fuzz_upload_never_crashes(chunks) -> None:
-    upload = MixerUpload()
-    for good_magic, action, text in chunks:
-        payload = (b"\x74\x6d" if good_magic else b"\x00\x00") + bytes((action,)) + text
-        payload += b"\0" * (len(payload) % 2)
-        upload.handle([int.from_bytes(payload[i:i + 2], "little")
-                       for i in range(0, len(payload), 2)])
-        assert len(upload.text) < 256
 
 
 # -- issue 18, defect 10a: huge numbers are the C ints sscanf stores, never OverflowError ----
