@@ -37,6 +37,22 @@ class Session:
     def close(self) -> None:
         self.orch.close()
 
+    def udp_instance(self) -> Any:
+        """The FMU's MAVLink instance on the GCS's UDP link (in-process: tests read its
+        counters and may patch its services)."""
+        mod = self.orch.handles["fmu"].endpoint.board.system.modules.get("mavlink")
+        return next(i for i in mod.instances if getattr(i.transport, "kind", "") == "udp")
+
+    def dmesg_mark(self) -> int:
+        """The FMU's virtual time in µs: :meth:`mavlink_errors` after it."""
+        return int(self.orch.handles["fmu"].endpoint.board.platform.time_us())
+
+    def mavlink_errors(self, since_us: int) -> list[str]:
+        """The ``mavlink`` ERR (or worse) lines logged in dmesg since ``since_us``."""
+        dmesg = self.orch.handles["fmu"].endpoint.board.platform.dmesg
+        return [text for t_us, severity, module, text in dmesg
+                if t_us >= since_us and severity <= 3 and module == "mavlink"]
+
 
 def open_session(root: Path, gcs: GcsClient | None = None, start_udp: bool = True,
                  **board: Any) -> Session:

@@ -164,3 +164,49 @@ def test_a_failing_command_handler_is_acked_failed(session):
     finally:
         svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION] = saved
     assert ack.result == mav.MAV_RESULT_FAILED
+
+
+def test_a_failing_command_handler_is_counted_and_logged(session):
+    """Review of defect 6: the FAILED ack hid the handler's exception from everything that
+    looks for bugs (``rx_handler_errors``, which the fuzz targets check); it is now counted
+    and logged as an ERR naming the command and the exception, local or forwarded."""
+    inst = session.udp_instance()
+    svc = inst.commands
+    saved = svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION]
+
+    def broken(m):
+        raise RuntimeError("a bug in a handler")
+    errors, mark = inst.rx_handler_errors, session.dmesg_mark()
+    svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION] = broken
+    try:
+        ack = session.gcs.command_long(mav.MAV_CMD_REQUEST_PROTOCOL_VERSION, [1], retries=0,
+                                       timeout_s=0.5)
+    finally:
+        svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION] = saved
+    assert ack.result == mav.MAV_RESULT_FAILED
+    assert inst.rx_handler_errors == errors + 1
+    assert session.mavlink_errors(mark) == [
+        f"COMMAND_LONG {mav.MAV_CMD_REQUEST_PROTOCOL_VERSION}: RuntimeError: a bug in a handler"]
+
+
+def test_an_interval_message_interval_cannot_carry_is_denied(session):
+    """Found by the command fuzz target once handler errors counted: SET_MESSAGE_INTERVAL
+    with 3e38 µs was accepted, and the next GET_MESSAGE_INTERVAL raised packing an interval
+    beyond MESSAGE_INTERVAL's int32 (acked FAILED). Intervals beyond int32 µs (~36 min) are
+    now DENIED, and a stream rate however low keeps an interval the message can report."""
+    gcs = session.gcs
+    inst = session.udp_instance()
+    errors = inst.rx_handler_errors
+    sys_status = mav.MAVLINK_MSG_ID_SYS_STATUS
+    assert gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL, [sys_status, 3e38], retries=0,
+                            timeout_s=0.5).result == mav.MAV_RESULT_DENIED
+    assert inst.set_stream_rate("SYS_STATUS", 1e-30)  # the shell's `mavlink stream -r`
+    try:
+        mark = gcs.mark()
+        assert gcs.command_long(mav.MAV_CMD_GET_MESSAGE_INTERVAL, [sys_status], retries=0,
+                                timeout_s=0.5).result == mav.MAV_RESULT_ACCEPTED
+        assert gcs.wait_message("MESSAGE_INTERVAL", since=mark).interval_us == 0x7FFFFFFF
+    finally:
+        assert gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                [sys_status, 0]).result == mav.MAV_RESULT_ACCEPTED
+    assert inst.rx_handler_errors == errors

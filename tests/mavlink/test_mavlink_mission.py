@@ -280,3 +280,26 @@ def test_download_during_an_upload_is_refused_not_stalled(dataman):
     gcs.send(mav.MAVLink_mission_ack_message(1, 1, mav.MAV_MISSION_OPERATION_CANCELLED, 0))
     assert len(gcs.download_mission()) == len(WAYPOINTS)
     assert _store(dataman).count == len(WAYPOINTS)
+
+
+def test_a_failing_mission_handler_is_counted_and_logged(dataman):
+    """Review of defect 4: the mission protocol's guard answered MAV_MISSION_ERROR but kept
+    the exception from ``rx_handler_errors`` (what the fuzz targets check), so a handler bug
+    looked like a polite refusal. It is now counted and logged as an ERR."""
+    gcs = dataman.gcs
+    assert gcs.upload_mission(WAYPOINTS) == mav.MAV_MISSION_ACCEPTED
+    inst = dataman.udp_instance()
+    store = _store(dataman)
+    errors, mark = inst.rx_handler_errors, dataman.dmesg_mark()
+
+    def broken(seq):
+        raise RuntimeError("a bug in a handler")
+    store.item = broken
+    try:
+        ack = _ack_after(gcs, mav.MAVLink_mission_request_int_message(1, 1, 0, 0))
+    finally:
+        del store.item
+    assert ack.type == mav.MAV_MISSION_ERROR
+    assert inst.rx_handler_errors == errors + 1
+    assert dataman.mavlink_errors(mark) == ["MISSION_REQUEST_INT: RuntimeError: a bug in a handler"]
+    assert len(gcs.download_mission()) == len(WAYPOINTS)

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import common as mav
 
+from firmware.modules.mavlink.streams import MAX_INTERVAL_US
+
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
 
@@ -75,9 +77,11 @@ def message_id(value: float) -> int:
 
 def interval_us(value: float) -> float:
     """A SET_MESSAGE_INTERVAL interval (-1 off, 0 default, > 0 µs); :class:`BadParam` if not
-    finite."""
+    finite or longer than MESSAGE_INTERVAL's int32 can report (~36 minutes)."""
     if not math.isfinite(value):
         raise BadParam(f"message interval {value!r} is not a number of microseconds")
+    if value > MAX_INTERVAL_US:
+        raise BadParam(f"message interval {value!r} µs is beyond {MAX_INTERVAL_US} µs")
     return value
 
 
@@ -140,13 +144,13 @@ class CommandService:
                 inst.send_text(mav.MAV_SEVERITY_WARNING, f"Command {command} denied: {exc}")
             except Exception as exc:  # noqa: BLE001 - every command gets its answer
                 result = mav.MAV_RESULT_FAILED
-                inst.module.error(f"command {command}: {type(exc).__name__}: {exc}")
+                inst.handler_failed(m, exc, f" {command}")
             inst.ack_command(command, result, src_sys, src_comp)
             return
         try:
             self._forward(m, command, p, p5, p6, p7, confirmation)
         except Exception as exc:  # noqa: BLE001 - every command gets its answer
-            inst.module.error(f"command {command}: {type(exc).__name__}: {exc}")
+            inst.handler_failed(m, exc, f" {command}")
             inst.ack_command(command, mav.MAV_RESULT_FAILED, src_sys, src_comp)
 
     def _forward(self, m: Any, command: int, p: tuple, p5: float, p6: float, p7: float,

@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
-from firmware.modules.mavlink.streams import DEFAULT_RATES, STREAM_BY_ID, STREAMS, StreamDef
+from firmware.modules.mavlink.streams import (
+    DEFAULT_RATES,
+    MAX_INTERVAL_US,
+    STREAM_BY_ID,
+    STREAMS,
+    StreamDef,
+)
 from firmware.platform.workqueue import WorkItem
 
 if TYPE_CHECKING:
@@ -170,7 +176,9 @@ class MavlinkInstance(WorkItem):
         if rate_hz <= 0:
             self.streams.pop(sdef.name, None)
             return True
-        interval = max(round(1e6 / rate_hz), 1000)
+        # 1 kHz at most; at least once per MESSAGE_INTERVAL's int32 µs (~36 min), so that a
+        # rate however low keeps an interval GET_MESSAGE_INTERVAL can report
+        interval = min(max(round(1e6 / rate_hz), 1000), MAX_INTERVAL_US)
         self._streams_due_us = 0  # look at every stream on the next run
         s = self.streams.get(sdef.name)
         if s is None:
@@ -336,8 +344,15 @@ class MavlinkInstance(WorkItem):
         try:
             handler(m)
         except Exception as exc:  # noqa: BLE001 - a GCS message must not crash the FMU
-            self.rx_handler_errors += 1
-            self.module.error(f"{m.get_type()}: {type(exc).__name__}: {exc}")
+            self.handler_failed(m, exc)
+
+    def handler_failed(self, m: Any, exc: BaseException, context: str = "") -> None:
+        """Record a message handler that raised: counted in :attr:`rx_handler_errors` and
+        logged as an ERR in dmesg with the exception. Every guard that contains a handler's
+        exception (this dispatcher's, the mission protocol's, the commands') reports here,
+        so a bug answered politely to the GCS is still visible to tests and fuzz targets."""
+        self.rx_handler_errors += 1
+        self.module.error(f"{m.get_type()}{context}: {type(exc).__name__}: {exc}")
 
     def _send_streams(self, now: int) -> None:
         # A UDP link nobody has talked to yet only announces itself (HEARTBEAT, as PX4

@@ -124,13 +124,14 @@ class MissionService:
     def _guarded(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
         """``fn`` answering MAV_MISSION_ERROR if it fails: the GCS's transfer ends with an
         answer instead of timing out, and a half-done upload is dropped (the previous
-        mission stays active)."""
+        mission stays active). The failure is still a bug: it is reported to the instance
+        (:meth:`~MavlinkInstance.handler_failed`), which counts and logs it."""
         def handle(m: Any) -> None:
             try:
                 fn(m)
             except Exception as exc:  # noqa: BLE001 - a GCS message must get an answer
                 self._up = None
-                self.inst.module.error(f"{m.get_type()}: {type(exc).__name__}: {exc}")
+                self.inst.handler_failed(m, exc)
                 self._ack(m, mav.MAV_MISSION_ERROR, int(getattr(m, "mission_type", 0)))
         return handle
 

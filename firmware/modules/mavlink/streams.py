@@ -17,7 +17,8 @@ from pymavlink.dialects.v20 import common as mav
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
 
-__all__ = ["DEFAULT_RATES", "STREAMS", "StreamDef", "base_mode_and_state", "custom_mode"]
+__all__ = ["DEFAULT_RATES", "MAX_INTERVAL_US", "STREAMS", "StreamDef", "base_mode_and_state",
+           "custom_mode"]
 
 UINT16_MAX: Final = 0xFFFF
 INT16_MAX: Final = 0x7FFF
@@ -333,6 +334,8 @@ STREAMS: Final[dict[str, StreamDef]] = {s.name: s for s in (
     StreamDef("HIGHRES_IMU", _highres_imu), StreamDef("MISSION_CURRENT", _mission_current),
 )}
 STREAM_BY_ID: Final[dict[int, StreamDef]] = {s.msg_id: s for s in STREAMS.values()}
+#: the longest stream interval: what MESSAGE_INTERVAL's int32 interval_us can report (~36 min)
+MAX_INTERVAL_US: Final = 0x7FFFFFFF
 
 _NORMAL: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 15.0, "ATTITUDE_QUATERNION": 10.0,
            "LOCAL_POSITION_NED": 1.0, "GLOBAL_POSITION_INT": 5.0, "GPS_RAW_INT": 1.0,
