@@ -55,15 +55,14 @@ def _parse_params(items: list[str] | None) -> dict[str, list[float | int]]:
 
     Every name must be declared and every value fit its type (``ParamDef.coerce``: int32, or
     a finite float32), so a bad one is refused here, before any board boots on it."""
-    from hil.params_doc import all_param_defs
+    from hil.params_doc import param_def
 
-    defs = {d.name: d for d in all_param_defs()}
     out: dict[str, list[float | int]] = {}
     for item in items or []:
         name, sep, values = item.partition("=")
         if not sep or not name or not values:
             raise ValueError(f"--param {item!r}: expected NAME=VALUE[,VALUE...]")
-        d = defs.get(name)
+        d = param_def(name)
         if d is None:
             raise ValueError(f"--param {item!r}: unknown parameter {name}")
         vals: list[float | int] = []

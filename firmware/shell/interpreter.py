@@ -262,8 +262,8 @@ class Shell:
             raise
         except Exception as exc:  # noqa: BLE001 - the shell's one guard (see _contain)
             self.status = self._contain("nsh", exc)
-            if type(exc) is ShellSyntaxError:
-                return
+            if isinstance(exc, ShellSyntaxError) and not isinstance(exc, ShellLimitError):
+                return  # a plain syntax error: nsh reports it and the if structure stands
             if frame.name is not None:
                 raise _ExitScript(1) from None
             frame.ifs.clear()

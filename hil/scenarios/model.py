@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Any
 
-from firmware.platform.params import ParamDef, ParamError
+from firmware.platform.params import ParamError
 from firmware.shell.parser import MAX_LINE_CHARS
 from hil.faults import CATALOGUE, FaultError, get_kind
 from hil.scenarios.document import (MAX_FILE_BYTES, ScenarioError, check_shape, parse_yaml,
@@ -396,22 +395,15 @@ def scenario_from_dict(data: Any, source: str = "<dict>") -> Scenario:
         raise ScenarioError(f"{source}: {exc}") from None
 
 
-@lru_cache(maxsize=1)
-def _param_defs() -> dict[str, ParamDef]:
-    """Every declared parameter (the FMU's system parameters and every module's), by name."""
-    from hil.params_doc import all_param_defs
-
-    return {d.name: d for d in all_param_defs()}
-
-
 def _params(v: Any, where: str) -> dict[str, int | float]:
     """``NAME: value`` pairs converted as the FMU will store them (the parameter layer's own
     conversion, float32 or int32), so a value the board would refuse at boot (an unknown name,
     1e39, NaN, a fraction for an integer) is a load error instead."""
+    from hil.params_doc import param_def  # imports every module: only when a file has params
+
     out: dict[str, int | float] = {}
-    defs = _param_defs()
     for k, x in _mapping(v, where).items():
-        d = defs.get(k) if isinstance(k, str) else None
+        d = param_def(k)
         if d is None:
             raise ScenarioError(f"{where}: unknown parameter {_r(k)}")
         try:
