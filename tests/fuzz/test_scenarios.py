@@ -29,7 +29,8 @@ SCALARS = st.one_of(
     st.none(), st.booleans(), st.integers(), st.integers(min_value=-2 ** 80, max_value=2 ** 80),
     st.floats(), st.sampled_from([math.nan, math.inf, -math.inf, 1e39, -1e39, 1e400 * 0]),
     st.text(max_size=12), st.sampled_from(["armed", "nav_state == Return", "sbus", "rc.tx_off",
-                                           "position", "alt_agl_m > 3", "hover", "1e39"]))
+                                           "position", "alt_agl_m > 3", "hover", "1e39",
+                                           "param show", "ver\nreboot", "echo " + "x" * 123]))
 TREES = st.recursive(
     SCALARS,
     lambda kids: st.one_of(st.lists(kids, max_size=4),
