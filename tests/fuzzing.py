@@ -4,11 +4,13 @@ Every test that fuzzes an entry point for outside bytes or text (RC decoders, th
 protocol, MAVLink, BSON and the FRAM parameter store, the shell, the scenario loader, ...)
 is decorated with ``@fuzz(examples)``. That marks it ``fuzz`` and gives hypothesis a budget:
 
-- in ``make test`` each target tries ``examples`` inputs, so that all of them together take a
-  few tens of seconds;
-- ``make fuzz`` (the long run) multiplies every budget by ``HIL_FUZZ_SCALE`` and prints
-  hypothesis's statistics: how many inputs each target tried, how many were rejected by the
-  strategy, and how long it took.
+- in ``make test`` each target tries ``examples`` inputs, so that all of them together take
+  about a minute of CPU; the inputs are derandomized (the same every run), so a failure in CI
+  is the failure you get at your desk;
+- ``make fuzz`` (the long run, ``HIL_FUZZ_SCALE`` set) multiplies every budget by that scale,
+  draws fresh random inputs (hypothesis keeps failures in ``.hypothesis/`` and tries them first
+  next time), and prints hypothesis's statistics: how many inputs each target tried, how many
+  the strategy rejected, and how long it took.
 
 No deadline: the boards are slow to build, and a slow example is not a failure. Health checks
 about slow or large data are off for the same reason; the others (a strategy that filters out
@@ -23,9 +25,10 @@ from typing import Callable, TypeVar
 import pytest
 from hypothesis import HealthCheck, settings
 
-__all__ = ["SCALE", "fuzz"]
+__all__ = ["LONG_RUN", "SCALE", "fuzz"]
 
-#: The long run's multiplier (``make fuzz`` sets it); 1 in ``make test``.
+#: The long run's multiplier (``make fuzz`` sets it); unset in ``make test``.
+LONG_RUN: bool = "HIL_FUZZ_SCALE" in os.environ
 SCALE: float = float(os.environ.get("HIL_FUZZ_SCALE", "1"))
 
 T = TypeVar("T", bound=Callable[..., object])
@@ -40,6 +43,7 @@ def fuzz(examples: int) -> Callable[[T], T]:
         budget = settings(
             max_examples=max(1, round(examples * SCALE)),
             deadline=None,
+            derandomize=not LONG_RUN,
             suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                    HealthCheck.large_base_example,
                                    HealthCheck.function_scoped_fixture],
