@@ -148,6 +148,14 @@ def _fresh_shell(board) -> tuple[Shell, list[str]]:
     return Shell(board.system, out.append), out
 
 
+def _no_internal_failure(text: str) -> None:
+    """The shell's guard contained nothing: its "internal error" (a command or the
+    interpreter raised) and "recursion" (Python's stack ran out) lines are bugs, however
+    politely printed; bad input has nsh's own messages."""
+    lowered = text.lower()
+    assert "internal error" not in lowered and "recursion" not in lowered, text
+
+
 def _still_answers(sh: Shell, out: list[str]) -> None:
     """Close what the input left open (as a person would), then ``echo ok`` must work."""
     assert 0 <= sh.open_ifs <= MAX_IF_DEPTH
@@ -165,12 +173,14 @@ def _still_answers(sh: Shell, out: list[str]) -> None:
 @given(LINES)
 def test_console_lines_never_stop_the_shell(fmu, line: str) -> None:
     """Invariant: every line returns an exit status in 0..255 and raises nothing (errors are
-    lines of output); at most MAX_IF_DEPTH blocks stay open; the shell then runs ``echo ok``."""
+    nsh's lines of output, never "internal error" or "recursion": the guard caught nothing);
+    at most MAX_IF_DEPTH blocks stay open; the shell then runs ``echo ok``."""
     sh, out = _fresh_shell(fmu)
     sh.env["A"] = "1"
     status = sh.execute(line)
     assert isinstance(status, int) and 0 <= status <= 255
     assert all(isinstance(chunk, str) for chunk in out)
+    _no_internal_failure("".join(out))
     _still_answers(sh, out)
 
 
@@ -178,7 +188,8 @@ def test_console_lines_never_stop_the_shell(fmu, line: str) -> None:
 @given(st.lists(LINES, min_size=1, max_size=12), st.booleans())
 def test_scripts_never_stop_the_shell(fmu, lines: list[str], as_file: bool) -> None:
     """Invariant: a script (text, or a file on the SD card run by ``sh``) returns a status in
-    0..255, raises nothing, leaves no block open at the prompt; the shell then runs ``echo ok``."""
+    0..255, raises nothing, prints no "internal error" or "recursion", leaves no block open at
+    the prompt; the shell then runs ``echo ok``."""
     sh, out = _fresh_shell(fmu)
     text = "\n".join(lines)
     if as_file:
@@ -187,6 +198,7 @@ def test_scripts_never_stop_the_shell(fmu, lines: list[str], as_file: bool) -> N
     else:
         status = sh.run_script(text, ["a", "b"], name="fuzz.sh")
     assert isinstance(status, int) and 0 <= status <= 255
+    _no_internal_failure("".join(out))
     _still_answers(sh, out)
 
 
@@ -196,14 +208,16 @@ def test_scripts_never_stop_the_shell(fmu, lines: list[str], as_file: bool) -> N
        st.sampled_from([b"\r", b"\n", b"\r\n", b""]))
 def test_console_bytes_never_stop_the_board(fmu, data: bytes, end: bytes) -> None:
     """Invariant: any bytes typed on the console UART (control bytes, invalid UTF-8, lines too
-    long, no line end at all) leave the FMU running (its kernel raises nothing); after a line
-    end, ``echo ok`` is answered with ``ok`` and a prompt."""
+    long, no line end at all) leave the FMU running (its kernel raises nothing) and print no
+    internal error; after a line end, ``echo ok`` is answered with ``ok`` and a prompt."""
     from tests.firmware.test_shell import CONSOLE, _type_on_console
 
     burst = data + end + b"\r"
     t = fmu.kernel.now_ns
-    fmu.advance(t + 100_000_000 + len(burst) * 200_000,   # 57600 baud: 174 us a byte
-                [(CONSOLE[0], t, (*CONSOLE[1], burst))])
+    sent = fmu.advance(t + 100_000_000 + len(burst) * 200_000,   # 57600 baud: 174 us a byte
+                       [(CONSOLE[0], t, (*CONSOLE[1], burst))])
+    _no_internal_failure(b"".join(payload[5] for port, _t, payload in sent
+                                  if port == CONSOLE[0] and payload[5]).decode("latin-1"))
     assert 0 <= fmu.shell.open_ifs <= MAX_IF_DEPTH
     for _ in range(MAX_IF_DEPTH):        # close what the junk opened, as a person would
         if not fmu.shell.open_ifs:
