@@ -46,7 +46,7 @@ from board.spi import SpiBus
 from board.specs import FMU_V2, BoardSpecData, model_class
 from board.uart import Uart, UartConfig
 from firmware.platform import Platform
-from firmware.shell.parser import MAX_LINE_CHARS
+from firmware.shell.line_editor import LineEditor
 from peripherals.errors import rng_for
 from peripherals.physics import Environment
 
@@ -55,9 +55,6 @@ __all__ = ["FmuV2Board", "TRUTH_KEYS", "BOOT_TO_SENSORS_NS"]
 #: Virtual time from power-on until the start-up script starts the sensor drivers (NuttX boot,
 #: mounting, parameter load). The sensors power up meanwhile (the MPU6000 needs 100 ms).
 BOOT_TO_SENSORS_NS = 300_000_000
-#: The console's line buffer: four bytes (UTF-8's widest character) per character of the
-#: shell's longest line, plus one, so a cut line still decodes to a line the shell refuses.
-CONSOLE_LINE_BYTES = 4 * (MAX_LINE_CHARS + 1)
 
 #: Field order of a truth record (hil.worldlink.TRUTH_FIELDS); kept here so the board does not
 #: import the world.
@@ -95,7 +92,7 @@ class FmuV2Board(Board):
         self.shell: Any = None
         self._param_overrides = dict(params or {})
         self._host_clock = host_clock
-        self._console_line = bytearray()
+        self._console_editor = LineEditor()
         self._ctl_shell: Any = None
         self.reboot_requested = False
         self.spi = {b.name: SpiBus(k, b.name, pclk_hz=b.pclk_hz) for b in spec.spi}
@@ -292,25 +289,16 @@ class FmuV2Board(Board):
         k.call_later(100_000_000, lambda: self._emit_reboot(k.now_ns, int(to_bootloader)))
 
     def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
-        """Bytes typed on the console UART: echo, and run each line on the shell.
-
-        The line buffer is bounded as NuttX readline's is: it keeps at most
-        :data:`CONSOLE_LINE_BYTES`, which decode to more characters than the shell's longest
-        line, and drops the rest, so the shell refuses the line as too long instead of the
-        board holding whatever a client sends without a line end."""
-        if byte in (0x0D, 0x0A):
-            line = self._console_line.decode("utf-8", "replace")
-            self._console_line.clear()
-            self.uarts["UART7"].write(b"\r\n")
+        """Bytes typed on the console UART: NuttX readline's line editing (the shell's
+        :class:`~firmware.shell.line_editor.LineEditor`, bounded, UTF-8), and each complete
+        line run on the shell."""
+        echo, line = self._console_editor.key(byte)
+        if echo:
+            self.uarts["UART7"].write(echo)
+        if line is not None:
             k = self.kernel
             # The shell is a thread: run the command after this interrupt, not inside it.
             k.call_at(k.now_ns, self._console_exec, line, priority=200)
-        elif byte in (0x08, 0x7F):
-            if self._console_line:
-                self._console_line.pop()
-        elif len(self._console_line) < CONSOLE_LINE_BYTES:
-            self._console_line.append(byte)
-            self.uarts["UART7"].write(bytes((byte,)))
 
     def _console_exec(self, line: str) -> None:
         if self.shell is not None and line.strip():

@@ -419,6 +419,10 @@ def test_a_deeply_nested_console_line_does_not_stop_the_board():
     assert reply.endswith("é\nnsh> ".encode()), reply
     assert _type_on_console(board, "echo ok").endswith("echo ok\r\nok\nnsh> ")
     assert board.ctl_shell("echo $?") == (0, "0\n")
+    # Backspace erases a whole character (both bytes of "é", not one: that left an invalid
+    # byte the shell got as U+FFFD), and the terminal is told to erase it too.
+    reply = _type_on_console(board, "echo aé\x7fb").encode("latin-1")
+    assert reply.endswith("echo aé\x08 \x08b\r\nab\nnsh> ".encode()), reply
 
 
 def test_if_nesting_is_bounded_as_nsh_bounds_it(con):

@@ -225,3 +225,34 @@ def test_console_bytes_never_stop_the_board(fmu, data: bytes, end: bytes) -> Non
         _type_on_console(fmu, "then")
         _type_on_console(fmu, "fi")
     assert _type_on_console(fmu, "echo ok").endswith("echo ok\r\nok\nnsh> ")
+
+
+#: typed bytes: random, or real lines (mutated) mixed with line ends, erases and cut UTF-8
+_TYPED = st.one_of(
+    st.binary(max_size=2000),
+    st.lists(st.one_of(mutated(REAL_LINES).map(lambda s: s.encode("utf-8", "surrogatepass")),
+                       st.sampled_from([b"\r", b"\n", b"\r\n", b"\x08", b"\x7f", b"\xc3",
+                                        b"\xe2\x82"])),
+             max_size=20).map(b"".join))
+
+
+@fuzz(examples=300)
+@given(_TYPED)
+def test_line_editor_takes_any_bytes(data: bytes) -> None:
+    """Invariant (the console's and the MAVLink shell's line editor): any bytes give only
+    ``str`` lines without CR or LF, the line being typed never holds more than LINE_BYTES,
+    the echo is only bytes typed, CR LF and erase sequences, and every line end gives one line
+    (CR LF one, not two)."""
+    from firmware.shell.line_editor import LINE_BYTES, LineEditor
+
+    ed = LineEditor()
+    lines: list[str] = []
+    for b in data:
+        echo, line = ed.key(b)
+        assert len(ed.line) <= LINE_BYTES
+        assert echo in (b"", b"\r\n", b"\x08 \x08", bytes((b,)))
+        if line is not None:
+            assert isinstance(line, str) and "\r" not in line and "\n" not in line
+            lines.append(line)
+    ends = data.count(b"\r") + data.count(b"\n") - data.count(b"\r\n")
+    assert len(lines) == ends

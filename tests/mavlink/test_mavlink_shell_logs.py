@@ -55,3 +55,20 @@ def test_log_request_end_stops_the_transfer(session):
     n = len(gcs.messages("LOG_DATA", mark))
     gcs.step(0.3)
     assert len(gcs.messages("LOG_DATA", mark)) == n
+
+
+def test_mavlink_shell_line_is_bounded_and_decodes_utf8(session):
+    """Review of defect 2: the MAVLink shell kept every byte without a line end (a client
+    could grow the FMU's memory without bound) and decoded it as latin-1, so "é" typed in
+    QGroundControl's console reached the shell as "Ã©". It now shares the console's line
+    editor: at most LINE_BYTES kept (the shell refuses the cut line as too long) and UTF-8."""
+    from firmware.shell.line_editor import LINE_BYTES
+
+    gcs = session.gcs
+    shell = session.udp_instance().shell
+    assert gcs.shell("echo h\u00e9") == "h\u00e9\n"
+    gcs._serial_send(b"x" * (3 * LINE_BYTES))   # no line end
+    gcs.step(0.05)
+    assert len(shell.editor.line) <= LINE_BYTES
+    assert "too long" in gcs.shell("")
+    assert gcs.shell("echo ok") == "ok\n"

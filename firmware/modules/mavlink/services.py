@@ -2,9 +2,10 @@
 
 * STATUSTEXT: every ``log_message`` (PX4_INFO and worse) goes to the GCS; texts longer than 50
   characters are split into chunks with a shared id (MAVLink 2 chunking).
-* SERIAL_CONTROL (device SHELL): QGroundControl's MAVLink console. Bytes typed are echoed and
-  collected into a line; a complete line runs on a :class:`~firmware.shell.Shell` of its own and
-  its output, then the ``nsh> `` prompt, go back in SERIAL_CONTROL replies of up to 70 bytes.
+* SERIAL_CONTROL (device SHELL): QGroundControl's MAVLink console. Bytes typed go through the
+  console's :class:`~firmware.shell.line_editor.LineEditor` (echo, backspace, bounded, UTF-8);
+  a complete line runs on a :class:`~firmware.shell.Shell` of its own and its output, then the
+  ``nsh> `` prompt, go back in SERIAL_CONTROL replies of up to 70 bytes.
 * LOG_REQUEST_LIST / LOG_REQUEST_DATA / LOG_REQUEST_END / LOG_ERASE over the ULog files under
   the SD card's ``log/`` folder (ids 1..n in path order, which is time order).
 * MANUAL_CONTROL -> ``manual_control_setpoint`` (data source MAVLink), and the offboard setpoints
@@ -22,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Final
 from pymavlink.dialects.v20 import common as mav
 
 from firmware.modules.mavlink.offboard import OffboardService
+from firmware.shell.line_editor import LineEditor
 
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
@@ -76,7 +78,7 @@ class ShellService:
     def __init__(self, inst: MavlinkInstance) -> None:
         self.inst = inst
         self.shell: Any = None
-        self._line = bytearray()
+        self.editor = LineEditor()
         self._out = bytearray()
         self._partner = (0, 0)
         self.lines_run = 0
@@ -96,31 +98,14 @@ class ShellService:
 
             self.shell = Shell(self.inst.system, output=self._write)
             self._out += b"\r\nNuttShell (NSH)\r\nnsh> "
-        data = bytes(m.data[: m.count])
-        for b in data:
-            if b in (0x0D, 0x0A):
-                if b == 0x0A and self._last_cr:
-                    self._last_cr = False
-                    continue
-                self._last_cr = b == 0x0D
-                line = self._line.decode("latin-1")
-                self._line.clear()
-                self._out += b"\r\n"
+        for b in bytes(m.data[: m.count]):
+            echo, line = self.editor.key(b)
+            self._out += echo
+            if line is not None:
                 if line.strip():
                     self.shell.execute(line)
                     self.lines_run += 1
                 self._out += b"nsh> "
-            elif b in (0x08, 0x7F):
-                self._last_cr = False
-                if self._line:
-                    self._line.pop()
-                    self._out += b"\x08 \x08"
-            else:
-                self._last_cr = False
-                self._line.append(b)
-                self._out += bytes((b,))
-
-    _last_cr = False
 
     def update(self, now_us: int) -> None:
         while self._out:
