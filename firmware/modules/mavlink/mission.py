@@ -14,13 +14,18 @@ Fence and rally point lists have no storage or user in this flight stack: reques
 are answered MAV_MISSION_UNSUPPORTED (and AUTOPILOT_VERSION does not claim those
 capabilities), which QGroundControl handles.
 
-Bad input, as PX4 answers it: a MISSION_COUNT beyond what the storage holds is
-MAV_MISSION_NO_SPACE at once; every item, float or int, goes through one check
-(:func:`check_item`) that answers MAV_MISSION_UNSUPPORTED_FRAME, MAV_MISSION_UNSUPPORTED or
-MAV_MISSION_INVALID_PARAM1..4 / PARAM5_X / PARAM6_Y / PARAM7 and aborts the upload; a failed
-save is MAV_MISSION_ERROR. In each case the previous mission stays active. Whatever the store
-holds downloads (values no message field can carry are sent as NaN / INT32_MAX, MAVLink's
-"unknown"), and a handler that fails anyway answers MAV_MISSION_ERROR instead of going silent.
+Bad input: a MISSION_COUNT beyond what the storage holds is MAV_MISSION_NO_SPACE at once (as
+PX4); every item, float or int, goes through one check (:func:`check_item`) that answers
+MAV_MISSION_UNSUPPORTED_FRAME or MAV_MISSION_UNSUPPORTED as PX4's parse_mavlink_mission_item
+does, and, the emulator's own stricter choice, MAV_MISSION_INVALID_PARAM1..4 / PARAM5_X /
+PARAM6_Y / PARAM7 for infinite parameters and non-finite or out-of-range positions (PX4 stores
+those and leaves them to the navigator's feasibility check; refusing them here keeps the
+stored mission downloadable and flyable), and aborts the upload; a failed save is
+MAV_MISSION_ERROR (as PX4). In each case the previous mission stays active. A download asked
+for during an upload is ignored with a STATUSTEXT, as PX4 does. Whatever the store holds
+downloads (values no message field can carry are sent as NaN / INT32_MAX, MAVLink's
+"unknown"), and a handler that fails anyway answers MAV_MISSION_ERROR instead of going silent
+(and is counted and logged as a handler error).
 """
 
 from __future__ import annotations
@@ -45,7 +50,8 @@ _NO_POS_CMDS: Final = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no p
 _GLOBAL_FRAMES: Final = _REL_FRAMES | _ABS_FRAMES
 #: the parameters (1..4) each command uses; NaN in them is MAVLink's "default/unchanged"
 #: (yaw: keep the heading mode; hold time: none; radii: NAV_ACC_RAD / the default; speed: no
-#: change), infinity is never meaningful. Unused parameters are ignored, as PX4 does.
+#: change), infinity is never meaningful (the emulator's check). Unused parameters are
+#: ignored.
 _USED_PARAMS: Final[dict[int, tuple[int, ...]]] = {
     16: (1, 2, 4), 17: (3, 4), 19: (1, 3), 20: (), 21: (4,), 22: (4,), 178: (2,)}
 _INVALID_PARAM: Final = (mav.MAV_MISSION_INVALID_PARAM1, mav.MAV_MISSION_INVALID_PARAM2,
@@ -64,8 +70,14 @@ def position_deg(m: Any) -> tuple[float, float]:
 
 def check_item(command: int, frame: int, params: tuple[float, float, float, float],
                lat_deg: float, lon_deg: float, alt_m: float) -> int:
-    """The one validation of a mission item, for both protocols: MAV_MISSION_ACCEPTED or the
-    MAV_MISSION_RESULT PX4 answers (the frame first, then the command, then the fields)."""
+    """The one validation of a mission item, for both protocols: MAV_MISSION_ACCEPTED or a
+    MAV_MISSION_RESULT, the frame first, then the command, then the fields.
+
+    The frame and command codes are PX4's, except that RTL and DO_CHANGE_SPEED are also
+    taken in a global frame (PX4 takes them only in MAV_FRAME_MISSION; the emulator's own
+    GCS client sends RTL in the mission's global frame). The field codes (INVALID_PARAMn for
+    infinity, PARAM5_X / PARAM6_Y / PARAM7 for positions) are the emulator's choice: PX4
+    stores such items and leaves them to the navigator's feasibility check."""
     if frame in _GLOBAL_FRAMES:
         if command not in SUPPORTED_NAV_CMDS:
             return mav.MAV_MISSION_UNSUPPORTED
@@ -94,8 +106,9 @@ def _e7(deg: float) -> int:
     return max(-INT32_MAX, min(INT32_MAX, round(deg * 1e7)))
 
 
-def _f32(v: float) -> float:
-    """A value a MAVLink float field can carry (beyond float32's range: infinity)."""
+def _float_field(v: float) -> float:
+    """``v`` for a MAVLink float field of a download: beyond float32's range it becomes
+    infinity of its sign (a download never fails; an upload refuses infinity)."""
     return v if not math.isfinite(v) or abs(v) <= FLT_MAX else math.copysign(math.inf, v)
 
 
@@ -280,12 +293,17 @@ class MissionService:
     # -- download -----------------------------------------------------------------------------
 
     def _busy(self, m: Any) -> bool:
-        """During an upload a download is answered MAV_MISSION_ERROR (PX4's "Busy"), so the
-        GCS's download ends at once instead of waiting for items that never come."""
+        """During an upload a download is ignored with a STATUSTEXT, as PX4's
+        handle_mission_request_list / handle_mission_request_both do (no MISSION_COUNT that
+        items would never follow, and no MISSION_ACK): the GCS retries, and the download works
+        once the upload ends, is cancelled (MISSION_ACK OPERATION_CANCELLED) or times out."""
         if self._up is None:
             return False
-        self.inst.send_text(mav.MAV_SEVERITY_WARNING, "Mission download refused: upload busy")
-        self._ack(m, mav.MAV_MISSION_ERROR)
+        if m.get_msgId() == mav.MAVLINK_MSG_ID_MISSION_REQUEST_LIST:
+            self.inst.send_text(mav.MAV_SEVERITY_INFO,
+                                "Mission download request ignored, already active")
+        else:
+            self.inst.send_text(mav.MAV_SEVERITY_CRITICAL, "WPM: REJ. CMD: Busy")
         return True
 
     def _on_request_list(self, m: Any) -> None:
@@ -324,13 +342,13 @@ class MissionService:
             (mav.MAV_FRAME_GLOBAL_INT if as_int else mav.MAV_FRAME_GLOBAL)
         current = int(m.seq == store.current_seq)
         args = (m.get_srcSystem(), m.get_srcComponent(), m.seq, frame, cmd & 0xFFFF, current,
-                int(bool(it.autocontinue)), _f32(float(p1)), _f32(float(p2)), _f32(float(p3)),
-                _f32(float(p4)))
-        alt = _f32(float(it.altitude))
+                int(bool(it.autocontinue)), _float_field(float(p1)), _float_field(float(p2)), _float_field(float(p3)),
+                _float_field(float(p4)))
+        alt = _float_field(float(it.altitude))
         if as_int:
             return mav.MAVLink_mission_item_int_message(*args, _e7(float(it.lat)),
                                                         _e7(float(it.lon)), alt, 0)
-        return mav.MAVLink_mission_item_message(*args, _f32(float(it.lat)), _f32(float(it.lon)),
+        return mav.MAVLink_mission_item_message(*args, _float_field(float(it.lat)), _float_field(float(it.lon)),
                                                 alt, 0)
 
     def _on_ack(self, m: Any) -> None:
