@@ -149,9 +149,10 @@ def test_bad_message_id_or_interval_denied(session, command, params):
 
 def test_a_failing_command_handler_is_acked_failed_counted_and_logged(session):
     """Defect 6 at the root: whatever a command handler raises becomes COMMAND_ACK
-    MAV_RESULT_FAILED: a command never goes unanswered. Review: the FAILED ack hid the handler's exception from everything that
-    looks for bugs (``rx_handler_errors``, which the fuzz targets check); it is now counted
-    and logged as an ERR naming the command and the exception, local or forwarded."""
+    MAV_RESULT_FAILED: a command never goes unanswered. Review: the FAILED ack hid the
+    handler's exception from everything that looks for bugs (``rx_handler_errors``, which the
+    fuzz targets check); it is now counted and logged as an ERR naming the command and the
+    exception, local or forwarded."""
     inst = session.udp_instance()
     svc = inst.commands
     saved = svc.local[mav.MAV_CMD_REQUEST_PROTOCOL_VERSION]
