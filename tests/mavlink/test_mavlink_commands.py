@@ -193,3 +193,107 @@ def test_an_interval_message_interval_cannot_carry_is_denied(session):
         assert gcs.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL,
                                 [sys_status, 0]).result == mav.MAV_RESULT_ACCEPTED
     assert inst.rx_handler_errors == errors
+
+
+# -- every command gets exactly one ack (issue 21) ---------------------------------------------
+
+@pytest.fixture(scope="module")
+def throwaway(tmp_path_factory):
+    """A board of its own: the commands below arm, change modes, load and reset parameters."""
+    from tests.mavlink.conftest import open_session
+
+    s = open_session(tmp_path_factory.mktemp("every_command"))
+    s.gcs.wait_heartbeat()
+    s.shell("commander start")
+    s.shell("navigator start")  # answers DO_CHANGE_SPEED itself
+    s.gcs.step(0.3)
+    yield s
+    s.close()
+
+
+def test_every_common_command_gets_exactly_one_ack(throwaway):
+    """Every id of the common dialect's MAV_CMD enum, sent as COMMAND_LONG with zero
+    parameters, is answered by exactly one COMMAND_ACK carrying its id: none is left to a
+    time-out (calibration, storage, DO_CHANGE_SPEED, camera, mission-only items...), none is
+    answered twice (the navigator's DO_CHANGE_SPEED is not also acked by the commander).
+    PREFLIGHT_REBOOT_SHUTDOWN with param1 0 does not reboot (UNSUPPORTED), so it is not
+    special; the reboot itself is tests/mavlink/test_mavlink_reboot.py's."""
+    from pymavlink import mavutil
+
+    gcs = throwaway.gcs
+    ids = sorted(c for c, e in mavutil.mavlink.enums["MAV_CMD"].items()
+                 if e.name != "MAV_CMD_ENUM_END")
+    assert len(ids) > 200
+    mark = gcs.mark()
+    for i in range(0, len(ids), 3):  # vehicle_command_ack queues 4: 3 per 20 ms
+        for command in ids[i:i + 3]:
+            gcs.send(mav.MAVLink_command_long_message(1, 1, command, 0, 0, 0, 0, 0, 0, 0, 0))
+        gcs.step(0.02)
+    gcs.step(0.3)
+    acks: dict[int, list[int]] = {}
+    for a in gcs.messages("COMMAND_ACK", mark):
+        acks.setdefault(a.command, []).append(a.result)
+    missing = [c for c in ids if c not in acks]
+    doubled = {c: r for c, r in acks.items() if len(r) != 1}
+    assert not missing and not doubled, (missing, doubled)
+    assert set(acks) == set(ids)
+    assert acks[mav.MAV_CMD_DO_CHANGE_SPEED] == [mav.MAV_RESULT_ACCEPTED]
+    # 0 loads, and this board's FRAM holds no saved parameters yet: FAILED, as PX4's
+    # param_load_default fails without a parameter file
+    assert acks[mav.MAV_CMD_PREFLIGHT_STORAGE] == [mav.MAV_RESULT_FAILED]
+    assert acks[mav.MAV_CMD_PREFLIGHT_CALIBRATION] == [mav.MAV_RESULT_ACCEPTED]  # all 0: end
+    assert acks[mav.MAV_CMD_NAV_WAYPOINT] == [mav.MAV_RESULT_UNSUPPORTED]
+    assert acks[mav.MAV_CMD_IMAGE_START_CAPTURE] == [mav.MAV_RESULT_UNSUPPORTED]
+
+
+def test_preflight_calibration_unsupported_with_a_reason(throwaway):
+    """No calibration routine in this firmware: a gyro calibration is UNSUPPORTED at once
+    (PX4's answer for a calibration it has no routine for), with a STATUSTEXT."""
+    gcs = throwaway.gcs
+    mark = gcs.mark()
+    ack = gcs.command_long(mav.MAV_CMD_PREFLIGHT_CALIBRATION, [1], retries=0, timeout_s=0.5)
+    assert ack.result == mav.MAV_RESULT_UNSUPPORTED
+    gcs.step(0.1)
+    assert any("calibration" in _text(m) for m in gcs.messages("STATUSTEXT", mark))
+
+
+def test_preflight_storage_saves_resets_and_loads_parameters(throwaway):
+    """PREFLIGHT_STORAGE through the parameter store (PX4's commander): 1 saves to FRAM, 2
+    resets all but CAL_* to defaults, 0 loads FRAM's values back; refused while armed."""
+    gcs = throwaway.gcs
+    params = throwaway.orch.handles["fmu"].endpoint.board.system.params
+    params.autosave_delay_us = -1  # only the command saves
+    try:
+        params.set("MPC_XY_CRUISE", 7.0)
+        saves = params.save_count
+        assert gcs.command_long(mav.MAV_CMD_PREFLIGHT_STORAGE, [1]).result == \
+            mav.MAV_RESULT_ACCEPTED
+        assert params.save_count == saves + 1
+        assert gcs.command_long(mav.MAV_CMD_PREFLIGHT_STORAGE, [2]).result == \
+            mav.MAV_RESULT_ACCEPTED
+        assert params["MPC_XY_CRUISE"] == params.defs["MPC_XY_CRUISE"].default
+        assert gcs.command_long(mav.MAV_CMD_PREFLIGHT_STORAGE, [0]).result == \
+            mav.MAV_RESULT_ACCEPTED
+        assert params["MPC_XY_CRUISE"] == 7.0
+        assert gcs.command_long(mav.MAV_CMD_PREFLIGHT_STORAGE, [9]).result == \
+            mav.MAV_RESULT_UNSUPPORTED
+        assert gcs.arm(force=True).result == mav.MAV_RESULT_ACCEPTED
+        assert gcs.command_long(mav.MAV_CMD_PREFLIGHT_STORAGE, [1]).result == \
+            mav.MAV_RESULT_TEMPORARILY_REJECTED
+    finally:
+        gcs.disarm(force=True)
+        params.reset("MPC_XY_CRUISE")
+        params.autosave_delay_us = 300_000
+
+
+def test_do_change_speed_sets_the_navigators_cruise_speed(throwaway):
+    """DO_CHANGE_SPEED (PX4's navigator): param2 > 0 is the cruise speed; 0, -1 or NaN goes
+    back to the default (-1: MPC_XY_CRUISE)."""
+    gcs = throwaway.gcs
+    nav = throwaway.orch.handles["fmu"].endpoint.board.system.modules.get("navigator")
+    assert gcs.command_long(mav.MAV_CMD_DO_CHANGE_SPEED, [1, 3.5, -1]).result == \
+        mav.MAV_RESULT_ACCEPTED
+    assert nav.cruise_speed == 3.5
+    assert gcs.command_long(mav.MAV_CMD_DO_CHANGE_SPEED, [1, math.nan]).result == \
+        mav.MAV_RESULT_ACCEPTED
+    assert nav.cruise_speed == -1.0

@@ -3,8 +3,12 @@ the shell (``commander arm|disarm|takeoff|land|mode|check``).
 
 A mixin of :class:`~firmware.modules.commander.commander.CommanderModule`, kept apart because
 it is a dispatch table over MAVLink command numbers rather than vehicle logic. Every command the
-commander handles is answered with ``vehicle_command_ack``; commands other modules handle
-(mission, camera, message intervals) are left alone; anything else is acked UNSUPPORTED.
+commander handles is answered with ``vehicle_command_ack``. A command that a running module
+answers itself (it lists it in its ``VEHICLE_COMMANDS``, as the navigator lists
+DO_CHANGE_SPEED) is left to that module, and the ones the MAVLink link answers never get here;
+anything else is acked UNSUPPORTED. PX4's commander leaves a fixed list of commands
+unanswered for modules that may not even run, so a ground station waits for a time-out; here
+every command gets exactly one ack (issue 21).
 The shell builds the same vehicle_command and runs it synchronously, so a shell arm and a GCS
 arm take the same path and both show up in the log as acks.
 """
@@ -26,13 +30,14 @@ CMD = {
     "NAV_RETURN_TO_LAUNCH": 20, "NAV_LAND": 21, "NAV_TAKEOFF": 22, "DO_SET_MODE": 176,
     "DO_SET_HOME": 179, "DO_FLIGHTTERMINATION": 185, "DO_REPOSITION": 192,
     "PREFLIGHT_REBOOT_SHUTDOWN": 246, "MISSION_START": 300, "COMPONENT_ARM_DISARM": 400,
+    "PREFLIGHT_CALIBRATION": 241, "PREFLIGHT_STORAGE": 245,
 }
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 RESULT = {ACCEPTED: "accepted", TEMPORARILY_REJECTED: "temporarily rejected", DENIED: "denied",
           UNSUPPORTED: "unsupported", FAILED: "failed"}
-#: commands answered by other modules (navigator, mavlink, camera, actuators): no ack here
-IGNORED = frozenset({16, 17, 19, 177, 178, 183, 184, 187, 189, 195, 197, 201, 205, 206, 241,
-                     242, 245, 511, 512, 519, 520, 2000, 2001, 2500, 2501, 2502, 2503})
+#: commands the MAVLink link answers itself (message requests and intervals, capabilities,
+#: protocol version): they reach vehicle_command only from inside the FMU, never to be acked
+LINK_COMMANDS = frozenset({511, 512, 519, 520})
 SWITCH_NONE, SWITCH_ON, SWITCH_OFF = 0, 1, 3
 _MAV_MODE_FLAG_CUSTOM, _FLAG_AUTO, _FLAG_GUIDED, _FLAG_STABILIZE, _FLAG_MANUAL = 1, 4, 8, 16, 64
 _GESTURE_STICK = 0.8
@@ -65,11 +70,12 @@ class CommandHandler:
         """
         if cmd.target_system not in (0, self.sys_id):  # type: ignore[attr-defined]
             return None
-        handler: Callable[[Any], int] | None = self._handlers().get(int(cmd.command))
+        command = int(cmd.command)
+        if command in LINK_COMMANDS or self._answered_elsewhere(command):
+            return None
+        handler: Callable[[Any], int] | None = self._handlers().get(command)
         self.last_reason = ""
         if handler is None:
-            if cmd.command in IGNORED:
-                return None
             result = UNSUPPORTED
             self.last_reason = f"command {cmd.command} not supported"
         else:
@@ -82,6 +88,16 @@ class CommandHandler:
         self.ack(cmd, result)  # type: ignore[attr-defined]
         return result
 
+    def _answered_elsewhere(self, command: int) -> bool:
+        """True if a running module answers ``command`` with its own ack (its class lists it
+        in ``VEHICLE_COMMANDS``): the commander must not answer it a second time."""
+        modules = self.system.modules  # type: ignore[attr-defined]
+        for name in modules.running():
+            mod = modules.get(name)
+            if mod is not None and command in getattr(mod, "VEHICLE_COMMANDS", ()):
+                return True
+        return False
+
     def _handlers(self) -> dict[int, Callable[[Any], int]]:
         return {CMD["COMPONENT_ARM_DISARM"]: self._cmd_arm, CMD["DO_SET_MODE"]: self._cmd_mode,
                 CMD["NAV_TAKEOFF"]: self._mode_cmd(modes.AUTO_TAKEOFF),
@@ -91,7 +107,9 @@ class CommandHandler:
                 CMD["DO_REPOSITION"]: self._cmd_reposition,
                 CMD["DO_SET_HOME"]: self._cmd_set_home,
                 CMD["DO_FLIGHTTERMINATION"]: self._cmd_terminate,
-                CMD["PREFLIGHT_REBOOT_SHUTDOWN"]: self._cmd_reboot}
+                CMD["PREFLIGHT_REBOOT_SHUTDOWN"]: self._cmd_reboot,
+                CMD["PREFLIGHT_CALIBRATION"]: self._cmd_calibration,
+                CMD["PREFLIGHT_STORAGE"]: self._cmd_storage}
 
     def _cmd_arm(self, cmd: Any) -> int:
         from firmware.modules.commander.commander import R_CMD_EXTERNAL, R_CMD_INTERNAL
@@ -163,6 +181,61 @@ class CommandHandler:
             self.last_reason = "reboot refused while armed"
             return DENIED
         ok = self.system.reboot(_param_int(cmd.param1) == 3)  # type: ignore[attr-defined]
+        return ACCEPTED if ok else FAILED
+
+    def _cmd_calibration(self, cmd: Any) -> int:
+        """MAV_CMD_PREFLIGHT_CALIBRATION. PX4's commander refuses it while armed
+        (TEMPORARILY_REJECTED), answers a request with every parameter 0 (the end of an RC
+        calibration) ACCEPTED, and answers UNSUPPORTED a calibration it has no routine for.
+        This commander has no calibration routines (gyro, accelerometer, magnetometer, level,
+        baro, RC, ESC, airspeed): every requested calibration is UNSUPPORTED, so a ground
+        station says so at once instead of waiting for a time-out, with a STATUSTEXT that QGC
+        shows ("[cal] calibration failed: ..." is what its calibration page parses)."""
+        if self.arming_state == 2:
+            self.last_reason = "Calibration denied: system armed"
+            self.warn(self.last_reason)  # type: ignore[attr-defined]
+            return TEMPORARILY_REJECTED
+        params = (cmd.param1, cmd.param2, cmd.param3, cmd.param4, cmd.param5, cmd.param6,
+                  cmd.param7)
+        if all(_param_int(p) == 0 for p in params):
+            return ACCEPTED
+        self.last_reason = "[cal] calibration failed: not supported by this firmware"
+        self.warn(self.last_reason)  # type: ignore[attr-defined]
+        return UNSUPPORTED
+
+    def _cmd_storage(self, cmd: Any) -> int:
+        """MAV_CMD_PREFLIGHT_STORAGE through the parameter store (PX4's commander): refused
+        while armed (TEMPORARILY_REJECTED); param1 0 loads the parameters from FRAM, 1 saves
+        them, 2 resets all but the calibration (``CAL_*``) to defaults, 3 resets only the
+        calibration, 4 resets everything (MAVLink's PARAM_RESET_CONFIG/SENSOR/ALL_DEFAULT; the
+        resets are saved by the store's autosave). A load or save that fails is FAILED;
+        another action UNSUPPORTED."""
+        if self.arming_state == 2:
+            self.last_reason = "parameter storage refused while armed"
+            return TEMPORARILY_REJECTED
+        params = self.system.params  # type: ignore[attr-defined]
+        action = _param_int(cmd.param1, -1)
+        if params is None or (action in (0, 1) and params.storage is None):
+            self.last_reason = "no parameter storage"
+            return FAILED
+        if action == 0:
+            ok = bool(params.load())
+            (self.info if ok else self.error)(  # type: ignore[attr-defined]
+                "Settings loaded" if ok else "Error loading settings")
+        elif action == 1:
+            ok = bool(params.save())
+            (self.info if ok else self.error)(  # type: ignore[attr-defined]
+                "Settings saved" if ok else "Error saving settings")
+        elif action in (2, 4):
+            params.reset_all(exclude=("CAL_*",) if action == 2 else ())
+            ok = True
+        elif action == 3:
+            for name in params.match("CAL_*"):
+                params.reset(name)
+            ok = True
+        else:
+            self.last_reason = f"storage action {cmd.param1} unknown"
+            return UNSUPPORTED
         return ACCEPTED if ok else FAILED
 
     # -- RC ---------------------------------------------------------------------------------

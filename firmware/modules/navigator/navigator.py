@@ -11,14 +11,16 @@ The mission comes from dataman (``firmware.modules.dataman``): the ``mission`` t
 slot and item are active, the items are read from the running dataman's store.
 ``vehicle_command`` is read for what the commander leaves to the navigator: the takeoff altitude
 (NAV_TAKEOFF param7), the hold position (DO_REPOSITION), the first mission item
-(MISSION_START param1). A mission's RTL item is passed to the commander as a command.
+(MISSION_START param1). DO_CHANGE_SPEED is the navigator's own: it sets the cruise speed and
+acks it (``VEHICLE_COMMANDS``, so the commander leaves it alone). A mission's RTL item is passed
+to the commander as a command.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, ClassVar, Final
 
 from firmware.modules.dataman import find_store
 from firmware.modules.navigator.geo import distance_m
@@ -52,6 +54,7 @@ REPUBLISH_US: Final = 1_000_000
 CMD_TAKEOFF: Final = 22
 CMD_REPOSITION: Final = 192
 CMD_MISSION_START: Final = 300
+CMD_DO_CHANGE_SPEED: Final = 178
 
 
 class NavigatorModule(WorkItemModule):
@@ -61,6 +64,8 @@ class NavigatorModule(WorkItemModule):
     INTERVAL_US = 50_000
     CPU_COST_NS = 120_000
     PARAMS = PARAMS
+    #: commands this module answers with its own vehicle_command_ack (see the commander)
+    VEHICLE_COMMANDS: ClassVar[frozenset[int]] = frozenset({CMD_DO_CHANGE_SPEED})
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
@@ -82,6 +87,8 @@ class NavigatorModule(WorkItemModule):
         self._pub_triplet = self.advertise("position_setpoint_triplet")
         self._pub_result = self.advertise("mission_result")
         self._pub_cmd = self.advertise("vehicle_command")
+        self._pub_ack = self.advertise("vehicle_command_ack")
+        self._ack = orb.new("vehicle_command_ack")
         self.triplet = orb.new("position_setpoint_triplet")
         #: cruise speed set by a mission's DO_CHANGE_SPEED, m/s (-1: the controller's default)
         self.cruise_speed = -1.0
@@ -252,6 +259,29 @@ class NavigatorModule(WorkItemModule):
             elif cmd.command == CMD_MISSION_START and cmd.param1 >= 0 and \
                     math.isfinite(cmd.param1):
                 self.mission.start_at(int(cmd.param1))
+            elif cmd.command == CMD_DO_CHANGE_SPEED:
+                self.change_speed(cmd.param2)
+                self._answer(cmd, 0)  # ACCEPTED
+
+    def change_speed(self, speed_m_s: float) -> None:
+        """DO_CHANGE_SPEED (PX4's navigator): a speed above zero is the new cruise speed,
+        anything else (0, -1, NaN) goes back to the controller's default (MPC_XY_CRUISE). The
+        current setpoint takes it at once (PX4 applies it to the active triplet)."""
+        self.cruise_speed = float(speed_m_s) if speed_m_s > 0.0 and math.isfinite(
+            speed_m_s) else -1.0
+        if self.triplet.current.valid:
+            self.triplet.current.cruising_speed = self.cruise_speed
+            self._dirty = True
+
+    def _answer(self, cmd: Any, result: int) -> None:
+        a = self._ack
+        a.timestamp = self.now_us
+        a.command = cmd.command
+        a.result = result
+        a.target_system = cmd.source_system
+        a.target_component = cmd.source_component
+        a.from_external = cmd.from_external
+        self._pub_ack.publish(a)
 
     def status_lines(self) -> list[str]:
         c = self.triplet.current
