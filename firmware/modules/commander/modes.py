@@ -147,6 +147,8 @@ def control_flags(nav_state: int) -> dict[str, bool]:
 def custom_to_nav(main_mode: int, sub_mode: int) -> int | None:
     """The navigation state of a PX4 custom mode, or None if there is none."""
     if main_mode == MAIN_AUTO:
+        if sub_mode == 0:  # PX4: AUTO without a sub mode is Mission
+            return AUTO_MISSION
         return _CUSTOM.get((main_mode, sub_mode))
     return _CUSTOM.get((main_mode, 0))
 

@@ -34,7 +34,8 @@ CAPABILITIES = (mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mav.MAV_PROTOCOL_CAP
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
-                | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+                | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | mav.MAV_PROTOCOL_CAPABILITY_FTP)
 #: the FMUv2's USB ids (3D Robotics), as PX4 reports them
 VENDOR_ID, PRODUCT_ID = 0x26AC, 0x0011
 _GLOBAL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT,
@@ -111,13 +112,26 @@ class CommandService:
 
     def handlers(self) -> dict[int, Callable[[Any], None]]:
         return {mav.MAVLINK_MSG_ID_COMMAND_LONG: self._on_long,
-                mav.MAVLINK_MSG_ID_COMMAND_INT: self._on_int}
+                mav.MAVLINK_MSG_ID_COMMAND_INT: self._on_int,
+                mav.MAVLINK_MSG_ID_SET_MODE: self._on_set_mode}
 
     # -- incoming -------------------------------------------------------------------------------
 
     def _on_long(self, m: Any) -> None:
         self._handle(m, m.command, (m.param1, m.param2, m.param3, m.param4),
                      float(m.param5), float(m.param6), m.param7, m.confirmation)
+
+    def _on_set_mode(self, m: Any) -> None:
+        """SET_MODE (#11), deprecated but still sent by MAVROS and older ground stations. PX4's
+        receiver (handle_message_set_mode) turns it into MAV_CMD_DO_SET_MODE: param1 the base
+        mode, param2/param3 the main and sub mode of ``px4_custom_mode`` (custom_mode bits
+        16-23 and 24-31), target component "all". The commander then switches as for the
+        command, with the same refusals, and its ack goes out as COMMAND_ACK for
+        DO_SET_MODE (176): PX4 answers SET_MODE that way too."""
+        custom = int(m.custom_mode) & 0xFFFFFFFF
+        main, sub = (custom >> 16) & 0xFF, (custom >> 24) & 0xFF
+        self._forward(m, mav.MAV_CMD_DO_SET_MODE,
+                      (float(m.base_mode), float(main), float(sub), 0.0), 0.0, 0.0, 0.0, 1)
 
     def _on_int(self, m: Any) -> None:
         if m.frame in _GLOBAL_FRAMES:
@@ -164,7 +178,7 @@ class CommandService:
         c.param5, c.param6, c.param7 = p5, p6, p7
         c.command = command
         c.target_system = m.target_system
-        c.target_component = m.target_component
+        c.target_component = getattr(m, "target_component", 0)  # SET_MODE has none: all
         c.source_system = src_sys
         c.source_component = src_comp
         c.confirmation = confirmation & 0xFF
