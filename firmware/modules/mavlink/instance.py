@@ -105,6 +105,7 @@ class MavlinkInstance(WorkItem):
         self._load = 0
         # services (import here: they need this class's API, not the other way round)
         from firmware.modules.mavlink.commands import CommandService
+        from firmware.modules.mavlink.ftp import FtpService
         from firmware.modules.mavlink.mission import MissionService
         from firmware.modules.mavlink.params import ParamService
         from firmware.modules.mavlink.services import (
@@ -121,8 +122,9 @@ class MavlinkInstance(WorkItem):
         self.logs = LogService(self)
         self.offboard = OffboardService(self)
         self.statustext = StatustextService(self)
+        self.ftp = FtpService(self)
         self.services = (self.params, self.commands, self.mission, self.shell, self.logs,
-                         self.offboard, self.statustext)
+                         self.offboard, self.statustext, self.ftp)
         self.handlers: dict[int, Callable[[Any], None]] = {
             mav.MAVLINK_MSG_ID_HEARTBEAT: self._on_heartbeat,
             mav.MAVLINK_MSG_ID_PING: self._on_ping,
