@@ -279,6 +279,34 @@ def test_auto_disarm_after_landing_and_before_takeoff() -> None:
     assert rig.status.arming_state == STANDBY and rig.status.latest_disarming_reason == 7
 
 
+@pytest.mark.parametrize("mode", [(4, 6), (4, 5), (4, 4)])  # Land, Return, Mission
+def test_disarmed_in_an_auto_mode_returns_to_hold_and_arms_again(mode: tuple[int, int]
+                                                                 ) -> None:
+    """Issue 21, a second flight: PX4's commander switches back to Hold after an autonomous
+    landing, so the vehicle can be armed again (Land and Return refuse arming)."""
+    rig = Rig(params={"COM_DISARM_LAND": 1.0})
+    rig.run(0.3)
+    if mode == (4, 4):
+        rig.set("mission", count=3)
+    assert rig.arm() == ACCEPTED
+    rig.take_off()
+    rig.run(0.5)
+    assert rig.set_mode(*mode) == ACCEPTED
+    rig.set("vehicle_land_detected", landed=True)
+    rig.run(1.5)
+    st = rig.status
+    assert st.arming_state == STANDBY and st.latest_disarming_reason == 7
+    assert st.nav_state == LOITER and st.nav_state_user_intention == LOITER
+    assert rig.arm() == ACCEPTED
+    assert rig.command("NAV_TAKEOFF") == ACCEPTED and rig.status.nav_state == TAKEOFF
+
+
+def test_disarmed_in_a_manual_mode_stays_in_it(rig: Rig) -> None:
+    assert rig.set_mode(3) == ACCEPTED and rig.arm() == ACCEPTED
+    assert rig.command("COMPONENT_ARM_DISARM", param1=0.0) == ACCEPTED
+    assert rig.status.arming_state == STANDBY and rig.status.nav_state == POSCTL
+
+
 def test_disarm_in_the_air_needs_force(rig: Rig) -> None:
     assert rig.arm() == ACCEPTED
     rig.take_off()

@@ -123,3 +123,28 @@ def test_set_mode_for_another_system_ignored(vehicle):
     assert set_mode_msg(gcs, CUSTOM, 3, 0, target=42) is None
     assert vehicle.counters()["rx_not_for_us"] == before + 1
     assert _heartbeat_mode(gcs) == (1, 0)
+
+
+# -- a second flight (issue 21) --------------------------------------------------------------
+
+@pytest.mark.slow
+def test_land_disarm_arm_again_and_fly_again(hil_vehicle):
+    """The whole vehicle (boards, world, RC, GCS over pymavlink): take off, Land (auto), the
+    commander disarms after landing and switches back to Hold (PX4), so arming is accepted
+    again and a second takeoff climbs. It used to stay in Land and refuse: "arming not
+    possible in Land mode"."""
+    v = hil_vehicle
+    gcs = v.gcs
+    v.wait_for("home_set", within=40.0, step=0.2)
+    # as hil/flight.py's pilot: 0.1 s ahead (the switch has already played up to the
+    # lookahead; HilVehicle.press_safety presses at t_ns, which it refuses as past)
+    v.dev["safety"].press(v.orch.t_ns + 100_000_000, hold_s=1.5)
+    v.wait_for("topic.px4io_status.status_safety_off", within=5.0)
+    for flight in (1, 2):
+        assert gcs.arm(timeout_s=2.0).result == mav.MAV_RESULT_ACCEPTED, flight
+        assert gcs.takeoff(3.0).result == mav.MAV_RESULT_ACCEPTED
+        v.wait_for("alt_agl_m > 2.5", within=15.0, step=0.1)
+        assert gcs.land().result == mav.MAV_RESULT_ACCEPTED
+        v.wait_for("not armed", within=20.0, step=0.1)
+        assert v.read("on_ground")
+        assert v.read("nav_state").lower() == "hold"

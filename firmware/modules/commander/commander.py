@@ -245,6 +245,13 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.arming_state = STANDBY
         self.armed_time_us = 0
         self.disarm_reason = reason
+        if self._flags[self.user_nav]["flag_control_auto_enabled"] and \
+                self.user_nav != modes.AUTO_LOITER:
+            # PX4's commander: "switch back to Hold mode after autonomous landing". Land,
+            # Return and Descend refuse arming, so staying in them made a second flight
+            # impossible; Hold arms, and a takeoff or mission command starts from it.
+            self.user_nav = modes.AUTO_LOITER
+            self.info("Mode Hold (disarmed in an auto mode)")
         self.failsafe.clear()
         self.terminated = False
         self.info("Disarmed" + {R_AUTO_DISARM_LAND: " by auto disarm on land",
