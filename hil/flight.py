@@ -7,7 +7,9 @@ mission, and the vehicle returns and lands by itself; the commander disarms afte
 
 The run records the world's truth every 50 ms and the phases' virtual times, then prints a
 summary: phases, tracking errors against the planned path, the estimator's errors against truth,
-the landing distance from home, and the real-time factor. The ULog is the FMU's own, written to
+the landing distance from home, and the real-time factor. While it flies it says what it is
+doing (hil.progress), and at the start which tier runs (compiled or pure) and how to get the
+faster one. The ULog is the FMU's own, written to
 the emulated SD card; the PNG is drawn from the recorded truth and estimate.
 """
 
@@ -24,6 +26,8 @@ from typing import Any
 from hil.accuracy import TruthSample, estimator_accuracy
 from hil.gcs import GcsClient
 from hil.native import active as native_active
+from hil.native import status as native_status
+from hil.progress import Progress
 from hil.system import DEFAULT_QUANTUM_NS, SystemConfig, build_system
 
 __all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
@@ -71,9 +75,15 @@ class _Recorder:
                           tr.lat_deg, tr.lon_deg, tr.alt_m))
 
 
-def _say(cfg: FlightConfig, text: str) -> None:
-    if cfg.progress:
-        print(text, flush=True)
+def tier_line() -> str:
+    """Which tier this run uses, and how to get the faster one: said once, at the start, so a
+    new user flies at once on the pure modules and knows what the compiled tier would buy."""
+    if native_active():
+        return "compiled tier (mypyc; HIL_PURE=1 runs the pure modules)"
+    state = native_status()[0]
+    why = "stale: the sources changed since it was built" if state == "stale" else "not built"
+    return (f"pure Python (compiled tier {why}; `make native` or `hil native build` compiles "
+            "the boards in a few minutes, then runs go ~1.2-1.3x faster)")
 
 
 def _dist_to_segment(p: tuple[float, float], a: tuple[float, float],
@@ -95,7 +105,13 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
                         params=params, gcs=True, pipeline=cfg.pipeline,
                         pin_cpus=cfg.pin_cpus, trace_path=cfg.trace_path)
+    progress = Progress(enabled=cfg.progress)
+    if cfg.progress:
+        print(f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}; "
+              f"{tier_line()}", flush=True)
+    progress.doing("starting the FMU and IO board processes")
     orch, dev = build_system(scfg)
+    orch.on_quantum.append(progress)
     gcs: GcsClient = dev["gcs"]
     world = dev["world"].world
     rec = _Recorder(world)
@@ -103,20 +119,25 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
     phases: list[dict[str, Any]] = []
     S = NS_PER_S
 
-    def phase(name: str) -> None:
+    def phase(name: str, then: str | None = None) -> None:
+        """A phase reached (recorded for the summary and printed), and what comes next."""
         phases.append({"name": name, "t_s": round(orch.t_ns / S, 3)})
-        _say(cfg, f"  [{orch.t_ns / S:7.2f} s] {name}   (real-time factor {orch.rtf:.1f})")
+        progress.t_ns = orch.t_ns
+        progress.event(name)
+        if then is not None:
+            progress.activity = then
 
     wall0 = time.perf_counter()
     home = (47.397742, 8.545594)
     with orch:
         gcs.attach(orch)
-        _say(cfg, f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}")
+        progress.doing("booting: rcS, drivers, estimator, px4io link (waiting for a heartbeat)")
         gcs.wait_heartbeat(timeout_s=10.0)
-        phase("booted (heartbeat)")
+        phase("booted (heartbeat)", then="waiting for a GPS fix and the estimator's position")
         gcs.wait_for(lambda: (gcs.last.get("HOME_POSITION") is not None
                               or _estimator_ready(gcs)), timeout_s=60.0)
         phase("estimator ready (GPS position)")
+        progress.doing("uploading the mission; the pilot presses the safety switch")
         # The IO takes the button only once the FMU says it is ready to arm (IO_ARM_OK): the
         # pilot presses when the vehicle is ready, as with the real safety LED.
         dev["safety"].press(orch.t_ns + S // 10, hold_s=1.5)
@@ -132,13 +153,15 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         result = gcs.upload_mission(items)
         if result != 0:
             raise RuntimeError(f"mission upload refused (MISSION_ACK type {result})")
-        phase("mission uploaded (takeoff, 4 waypoints, return)")
+        phase("mission uploaded (takeoff, 4 waypoints, return)",
+              then="waiting for the safety switch to be off")
         gcs.wait_for(lambda: _safety_off(orch), timeout_s=10.0)
         phase("safety switch off")
+        progress.doing("arming")
         ack = gcs.arm(timeout_s=5.0)
         if ack.result != 0:
             raise RuntimeError(f"arming refused: {gcs.last.get('STATUSTEXT')}")
-        phase("armed")
+        phase("armed", then=f"mission: taking off to {cfg.altitude_m:.0f} m")
         gcs.start_mission()
         t_takeoff = None
         reached: set[int] = set()
@@ -148,11 +171,15 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
             agl = world.truth().agl_m
             if t_takeoff is None and agl > cfg.altitude_m - 0.5:
                 t_takeoff = orch.t_ns
-                phase(f"takeoff: reached {cfg.altitude_m:.0f} m")
+                phase(f"takeoff: reached {cfg.altitude_m:.0f} m",
+                      then="mission: flying to waypoint 1")
             for m in gcs.messages("MISSION_ITEM_REACHED", since=max(0, gcs.mark() - 200)):
                 if 1 <= m.seq <= len(SQUARE_NE) and m.seq not in reached:
                     reached.add(m.seq)
-                    phase(f"waypoint {m.seq} reached")
+                    phase(f"waypoint {m.seq} reached",
+                          then=(f"mission: flying to waypoint {m.seq + 1}"
+                                if m.seq < len(SQUARE_NE) else
+                                "mission: returning home and landing"))
             hb = gcs.last.get("HEARTBEAT")
             armed = bool(hb and hb.base_mode & 128)
             if t_takeoff is not None and not armed:
@@ -282,7 +309,7 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")
     print(f"  landed {summary['landed_distance_m']:.2f} m from home")
     tier = ("compiled tier" if summary["compiled"]
-            else "pure Python; `hil native build` compiles the boards, ~1.1-1.3x faster")
+            else "pure Python; `make native` compiles the boards, ~1.2-1.3x faster")
     cpus = summary.get("cpus") or "CPUs not pinned"
     print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time, "
           f"{tier}; {cpus})")

@@ -186,13 +186,19 @@ def main(args: object) -> int:
     return 0
 
 
-def build(root: Path = ROOT, jobs: int | None = None, verbose: bool = False) -> Path:
-    """Mirror the packages and compile :data:`COMPILED` there; returns the mirror's path."""
+def build(root: Path = ROOT, jobs: int | None = None, verbose: bool = False,
+          dest: Path | None = None, opt_level: str | None = None) -> Path:
+    """Mirror the packages and compile :data:`COMPILED` there; returns the mirror's path.
+
+    ``dest`` puts the mirror elsewhere than :func:`native_dir` (the test of the tier's
+    equivalence builds its own and leaves the user's alone); ``opt_level`` is the C compiler's
+    (default ``HIL_NATIVE_OPT`` or 3). The equivalence is about what mypyc makes of the source,
+    not about gcc's optimiser, and ``-O0`` compiles quicker."""
     try:
         import mypyc  # noqa: F401
     except ImportError as exc:  # pragma: no cover - mypy is a dependency
         raise RuntimeError("the compiled tier needs mypy (pip install mypy)") from exc
-    d = native_dir(root)
+    d = native_dir(root) if dest is None else dest
     work = d.with_name(d.name + ".building")
     shutil.rmtree(work, ignore_errors=True)
     digest = _digest(root)
@@ -206,7 +212,7 @@ def build(root: Path = ROOT, jobs: int | None = None, verbose: bool = False) -> 
         "from setuptools import setup\n"
         "from mypyc.build import mypycify\n"
         f"mods = {list(COMPILED)!r}\n"
-        f"OPT = {os.environ.get('HIL_NATIVE_OPT', '3')!r}\n"
+        f"OPT = {opt_level or os.environ.get('HIL_NATIVE_OPT', '3')!r}\n"
         "setup(name='fmu_hil_native', packages=[], py_modules=[],\n"
         "      ext_modules=mypycify(mods, opt_level=OPT, debug_level='0', separate=True),\n"
         f"      script_args=['-q', 'build_ext', '--inplace', '-j', '{jobs or os.cpu_count() or 1}'])\n"

@@ -36,9 +36,14 @@ def test_sigint_to_hil_run_leaves_no_orphans(tmp_path):
     try:
         line = proc.stdout.readline()
         assert "hil run" in line
-        # Wait until the lockstep is running (the first phase line) and the boards exist.
-        line = proc.stdout.readline()
-        assert "booted" in line, line
+        # Wait until the lockstep is running (the first phase line) and the boards exist; the
+        # progress lines before it say what the run is doing.
+        seen = [line]
+        while "booted" not in line:
+            line = proc.stdout.readline()
+            assert line, "".join(seen)
+            seen.append(line)
+        assert any("booting" in s for s in seen), "".join(seen)
         boards = [p for p in _children(proc.pid) if _alive(p)]
         assert len(boards) >= 2  # the FMU and IO board processes (plus maybe a tracker)
         proc.send_signal(signal.SIGINT)

@@ -1,7 +1,11 @@
 """The compiled tier (hil.native): freshness rules, and the same bytes as the pure modules.
 
-The equivalence test needs the tier built: `make test` builds it first (`hil native build
---if-needed`); run alone, the test builds it (a few minutes) rather than skip.
+The equivalence tests need a compiled tier: the user's if it is fresh (`make native`), else
+one built here into a temporary folder at gcc -O0 (quicker than -O3; the
+equivalence is about what mypyc makes of the source, not gcc's optimiser), never a skip. The
+tests that build share one build: the module is one xdist group (`make test` runs
+``--dist loadgroup``, which starts the largest groups first, so the build overlaps the rest
+of the suite).
 """
 
 from __future__ import annotations
@@ -15,6 +19,18 @@ from pathlib import Path
 import pytest
 
 from hil import native
+
+pytestmark = pytest.mark.xdist_group("native")
+
+
+@pytest.fixture(scope="module")
+def compiled_tier(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A compiled tier of the current sources: the user's when fresh, else a quick one."""
+    if native.status()[0] == "fresh":
+        return native.native_dir()
+    d = native.build(dest=tmp_path_factory.mktemp("native") / "tier", opt_level="0")
+    assert (d / "manifest.json").exists()
+    return d
 
 
 def _tree(root: Path) -> None:
@@ -81,13 +97,11 @@ def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> d
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_compiled_and_pure_write_byte_identical_logs(tmp_path: Path) -> None:
+def test_compiled_and_pure_write_byte_identical_logs(tmp_path: Path,
+                                                      compiled_tier: Path) -> None:
     """Ten virtual seconds of the whole system (drivers, sensors, estimator, controllers,
     px4io and the IO, logger with the raw sensors), compiled and pure: same log bytes."""
-    if native.status()[0] != "fresh":
-        native.build()
-    assert native.status()[0] == "fresh"
-    compiled = _check(tmp_path, "compiled", {"PYTHONPATH": str(native.native_dir())}, 10.0)
+    compiled = _check(tmp_path, "compiled", {"PYTHONPATH": str(compiled_tier)}, 10.0)
     pure = _check(tmp_path, "pure", {}, 10.0)
     assert compiled["compiled"] is True and not compiled["kernel"].endswith(".py")
     assert pure["compiled"] is False and pure["kernel"].endswith(".py")
@@ -138,14 +152,12 @@ print(json.dumps(out))
 """
 
 
-def test_compiled_dsm_decoder_matches_pure(tmp_path: Path) -> None:
+def test_compiled_dsm_decoder_matches_pure(tmp_path: Path, compiled_tier: Path) -> None:
     """The DSM decoder compiled gives the pure decoder's frames: mypyc once compiled a
     narrowed ``self.mode is None`` check into a TypeError on the frame that ends the guess."""
     assert "ioproc/rc/dsm.py" in native.COMPILED
-    if native.status()[0] != "fresh":
-        native.build()
     runs = {}
-    for name, extra in (("compiled", {"PYTHONPATH": str(native.native_dir())}),
+    for name, extra in (("compiled", {"PYTHONPATH": str(compiled_tier)}),
                         ("pure", {"PYTHONPATH": str(native.ROOT)})):
         res = subprocess.run([sys.executable, "-c", _DSM_SCRIPT], cwd=tmp_path,
                              env=_child_env(extra), capture_output=True, text=True, timeout=300,
