@@ -37,7 +37,9 @@ PARAMS: Final[tuple[ParamDef, ...]] = (
              short="RC control input mode",
              values={0: "RC only", 1: "MAVLink only", 2: "RC and MAVLink with fallback",
                      3: "RC or MAVLink keep first", 4: "Stick input disabled"},
-             long="0 and 2 require stick input to arm in any mode; 4 never checks it (no RC "
+             long="Which manual-control source flies (rc_update's selector): RC, a MAVLink "
+                  "joystick (MANUAL_CONTROL), either with fallback, or the first one seen. "
+                  "0 and 2 require stick input to arm in any mode; 4 never checks it (no RC "
                   "loss failsafe either)."),
     ParamDef("COM_RC_LOSS_T", "FLOAT", 0.5, min=0.0, max=35.0, unit="s", group=_C, decimals=1,
              short="Manual control loss timeout"),

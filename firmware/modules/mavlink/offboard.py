@@ -12,8 +12,9 @@ As in PX4, setpoints are only published while the commander has Offboard control
 (``vehicle_control_mode.flag_control_offboard_enabled``): a companion computer streaming
 setpoints before the switch must not move the vehicle in another mode.
 
-MANUAL_CONTROL -> ``manual_control_setpoint`` with ``data_source = SOURCE_MAVLINK_0 + link``,
-on an instance of its own (advertised on first use), so it never overwrites RC input.
+MANUAL_CONTROL -> ``manual_control_input`` with ``data_source = SOURCE_MAVLINK_0 + link``, on
+an instance of its own (advertised on first use), as PX4's receiver publishes it; rc_update's
+selector decides by COM_RC_IN_MODE whether it or RC becomes ``manual_control_setpoint``.
 """
 
 from __future__ import annotations
@@ -179,7 +180,7 @@ class OffboardService:
             s.throttle = max(-1.0, min(1.0, m.z / 500.0 - 1.0))  # 0..1000 -> -1..1
             s.yaw = max(-1.0, min(1.0, m.r / 1000.0))
             s.sticks_moving = True
-        self._publish("manual_control_setpoint", fill, multi=True)
+        self._publish("manual_control_input", fill, multi=True)
         self.manual_inputs += 1
 
 

@@ -12,6 +12,11 @@ notices when the input stops altogether. Conventions (PX4 after 2022):
 * ``manual_control_setpoint`` and ``manual_control_switches`` are published only while the
   signal is good; the commander detects RC loss from their absence (COM_RC_LOSS_T).
 
+The sticks published are those of the selected manual-control source (PX4's ManualControl
+module, here in rc_update as in PX4 before it was split out): RC, or a MAVLink joystick
+(MANUAL_CONTROL, which the mavlink links publish on ``manual_control_input`` instances), chosen
+by ``COM_RC_IN_MODE`` (:mod:`firmware.modules.rc_update.selector`). The switches are RC's only.
+
 Signal lost (reference io-and-rc 9.3): the receiver/IO says lost or failsafe, fewer than 4
 channels, the failsafe channel beyond RC_FAILS_THR, or no ``input_rc`` for 0.5 s. A regained
 signal must stay good 100 ms before it is believed.
@@ -22,6 +27,7 @@ from __future__ import annotations
 from typing import Any, Final
 
 from firmware.modules.rc_update.params import MAX_CHANNELS, PARAMS, SWITCH_MAPS
+from firmware.modules.rc_update.selector import ManualControlSelector
 from firmware.platform.module import WorkItemModule
 
 __all__ = ["RcUpdateModule", "mode_slot", "scale_channel", "switch_position"]
@@ -34,6 +40,7 @@ STALE_US: Final = 500_000        # no input_rc for this long: signal lost
 REGAIN_US: Final = 100_000       # a regained signal must stay good this long
 WATCHDOG_US: Final = 100_000
 MODE_SLOTS: Final = 6
+MAVLINK_INPUTS: Final = 4        # manual_control_input instances watched (one per link)
 _STICK_MOVING: Final = 0.05
 
 # rc_channels.function indexes (firmware/msg/rc_channels.msg)
@@ -110,6 +117,10 @@ class RcUpdateModule(WorkItemModule):
         self._sub_param = self.subscribe("parameter_update")
         assert self.work_item is not None
         self._sub_rc = self.subscribe_callback(self.work_item, "input_rc")
+        self._sub_inputs = [self.subscribe_callback(self.work_item, "manual_control_input", i)
+                            for i in range(MAVLINK_INPUTS)]
+        self.selector = ManualControlSelector()
+        self._out = orb.new("manual_control_setpoint")
         self.work_item.schedule_on_interval(WATCHDOG_US)
         self._last_input_us = 0
         self._lost = True
@@ -147,6 +158,11 @@ class RcUpdateModule(WorkItemModule):
         self._sw_params = [(name, function[_SWITCH_FUNCTION[name]], float(p(th)))
                            for name, (_, th) in SWITCH_MAPS.items()]
         self._sticks_mapped = any(function[f] >= 0 for f in (F_THROTTLE, F_ROLL, F_PITCH, F_YAW))
+        params = self.system.params
+        sel = self.selector
+        sel.rc_in_mode = int(params.get("COM_RC_IN_MODE", 3)) if params is not None else 3
+        loss_s = float(params.get("COM_RC_LOSS_T", 0.5)) if params is not None else 0.5
+        sel.timeout_us = int(loss_s * 1e6)
 
     # -- the loop ---------------------------------------------------------------------------
 
@@ -155,6 +171,10 @@ class RcUpdateModule(WorkItemModule):
             self._sub_param.copy()
             self._load_params()
         now = self.platform.time_us()
+        for sub in self._sub_inputs:
+            m = sub.update()
+            if m is not None:
+                self._offer(m, now)
         rc = self._sub_rc.update()
         if rc is None:
             if not self._lost and self._last_input_us and now - self._last_input_us > STALE_US:
@@ -248,7 +268,15 @@ class RcUpdateModule(WorkItemModule):
             abs(m.roll) > _STICK_MOVING or abs(m.pitch) > _STICK_MOVING or \
             abs(m.yaw) > _STICK_MOVING
         self._prev_sticks = sticks
-        self._pub_man.publish(m)
+        self._offer(m, now)
+
+    def _offer(self, m: Any, now: int) -> None:
+        """Publish ``m`` on manual_control_setpoint if the selector chooses its source."""
+        if self.selector.offer(m, now):
+            out = self._out
+            _copy(m, out)
+            out.timestamp = now
+            self._pub_man.publish(out)
 
     def _publish_switches(self, rc: Any, now: int, n: int) -> None:
         sw = self._sw
@@ -275,3 +303,9 @@ class RcUpdateModule(WorkItemModule):
         state = "LOST" if self._lost else "ok"
         return [f"signal {state}, {ch.channel_count} channels, losses {self._loss_count}",
                 f"channels: {vals}"]
+
+
+def _copy(src: Any, dst: Any) -> None:
+    """Field by field: the subscription's message stays the broker's."""
+    for name in type(src).__slots__:
+        setattr(dst, name, getattr(src, name))
