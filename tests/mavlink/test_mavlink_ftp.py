@@ -188,3 +188,37 @@ def test_a_repeated_request_gets_the_same_reply_without_running_twice(session):
     assert first["opcode"] == again["opcode"] == srv.OP_ACK
     _nak(ftp_call(gcs, 2002, srv.OP_MKDIR, b"/fs/microsd/again"), srv.ERR_EXISTS)
     assert ftp_call(gcs, 2004, srv.OP_RMDIR, b"/fs/microsd/again")["opcode"] == srv.OP_ACK
+
+
+# -- the server alone ---------------------------------------------------------------------------
+
+def test_an_idle_session_is_closed_after_10_s_as_px4_does(tmp_path):
+    (tmp_path / "f.bin").write_bytes(b"abc")
+    server = srv.FtpServer(tmp_path, None)
+    opened = server.handle(srv.HEADER.pack(1, 0, srv.OP_OPEN_RO, 5, 0, 0, 0) + b"f.bin", 0)
+    assert opened is not None and opened[3] == srv.OP_ACK
+    server.idle(srv.SESSION_TIMEOUT_US)
+    assert server.session is not None           # 10 s exactly: still open
+    server.idle(srv.SESSION_TIMEOUT_US + 1)
+    assert server.session is None
+    reread = server.handle(srv.HEADER.pack(3, 0, srv.OP_READ, 0, 0, 0, 0), 11_000_000)
+    assert reread is not None and reread[3] == srv.OP_NAK and reread[12] == srv.ERR_SESSION
+
+
+def test_param_pck_shares_long_prefixes_within_the_format_s_4_bits():
+    """Names sharing 15 characters or more (the prefix field's limit), and a name that is the
+    next one's prefix, still decode."""
+
+    class _Def:
+        def __init__(self, t: str, default: float) -> None:
+            self.type, self.default = t, default
+
+    class _Params:
+        names = ["ABCDEFGHIJKLMNO", "ABCDEFGHIJKLMNOP", "ABCDEFGHIJKLMNOQ", "B"]
+        defs = {n: _Def("INT32" if n != "B" else "FLOAT", 0) for n in names}
+        values = {n: i for i, n in enumerate(names)}
+
+    pdata = mavftp.MAVFTP.ftp_param_decode(srv.pack_params(_Params(), False))
+    assert pdata is not None
+    assert [(n.decode(), v) for n, v, _ in pdata.params] == \
+        [(n, float(i) if n == "B" else i) for i, n in enumerate(_Params.names)]
