@@ -73,7 +73,8 @@ def test_autopilot_version_and_protocol_version_on_request(session):
     av = gcs.wait_message("AUTOPILOT_VERSION", since=mark)
     assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-    assert not av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE  # as PX4 (issue 21)
+    assert av.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
     ack = gcs.command_long(mav.MAV_CMD_REQUEST_PROTOCOL_VERSION, [1])
     assert ack.result == mav.MAV_RESULT_ACCEPTED
     pv = gcs.wait_message("UNKNOWN_300", since=mark)  # not in pymavlink's dialects

@@ -71,9 +71,10 @@ def test_change_speed_item_round_trips(dataman):
     assert items[1].param2 == 3.5
 
 
-def test_fence_and_rally_are_unsupported(dataman):
+def test_an_unknown_mission_type_is_unsupported(dataman):
+    # fence and rally lists are supported (test_mavlink_fence_rally.py); 3 is no list type
     gcs = dataman.gcs
-    for mtype in (mav.MAV_MISSION_TYPE_FENCE, mav.MAV_MISSION_TYPE_RALLY):
+    for mtype in (3,):
         mark = gcs.mark()
         gcs.send(mav.MAVLink_mission_count_message(1, 1, 3, mtype))
         ack = gcs.wait_message("MISSION_ACK", since=mark)
@@ -158,7 +159,7 @@ def _reopen_with_dataman(root):
 
 
 def test_mission_beyond_fram_capacity_is_no_space_and_keeps_the_old_one(tmp_path):
-    """Defect 3: 76 items do not fit the FRAM waypoint partition (75): MISSION_COUNT is
+    """Defect 3: 62 items do not fit the FRAM's mission region (61): MISSION_COUNT is
     answered MAV_MISSION_NO_SPACE before any item is requested, and after a power cycle the
     mission that was accepted before is still the one stored."""
     s = _reopen_with_dataman(tmp_path)
@@ -166,19 +167,19 @@ def test_mission_beyond_fram_capacity_is_no_space_and_keeps_the_old_one(tmp_path
         gcs = s.gcs
         assert gcs.upload_mission(WAYPOINTS) == mav.MAV_MISSION_ACCEPTED
         mark = gcs.mark()
-        gcs.send(mav.MAVLink_mission_count_message(1, 1, 76, 0))
+        gcs.send(mav.MAVLink_mission_count_message(1, 1, 62, 0))
         ack = gcs.wait_message("MISSION_ACK", since=mark)
         assert ack.type == mav.MAV_MISSION_NO_SPACE
         assert not gcs.messages("MISSION_REQUEST_INT", mark)
         assert _store(s).count == 4
-        # 75 items do fit, and survive the power cycle
-        square = [(47.3977 + i * 1e-5, 8.5455, 10.0) for i in range(75)]
+        # 61 items do fit, and survive the power cycle
+        square = [(47.3977 + i * 1e-5, 8.5455, 10.0) for i in range(61)]
         assert gcs.upload_mission(square, timeout_s=30) == mav.MAV_MISSION_ACCEPTED
     finally:
         s.close()
     s = _reopen_with_dataman(tmp_path)
     try:
-        assert _store(s).count == 75
+        assert _store(s).count == 61
     finally:
         s.close()
 

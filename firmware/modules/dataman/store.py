@@ -7,34 +7,34 @@ item (the MAVLink mission protocol delivers one item per message), :meth:`Missio
 makes it the active mission.
 
 Persistence is a hook: any object with ``size``, ``read(offset, n)`` and ``write(offset, data)``
-(the FRAM ``waypoints`` partition, a :class:`~firmware.platform.params.MemoryPartition`). Only the
-active mission is written, as one record guarded by a CRC-32, into one of two records that
-alternate (each half the partition), as the parameter store does and as PX4 alternates
-DM_KEY_WAYPOINTS_OFFBOARD_0/1: a save never touches the record holding the newest saved mission,
-and the valid record with the newer save number (wrap-safe,
-:func:`~firmware.platform.params.seq_newer`) wins at load. A power cut at any byte of a save
+(the mission region of the FRAM ``waypoints`` partition, a
+:class:`~firmware.platform.params.MemoryPartition`). Only the active mission is written, as one
+record guarded by a CRC-32, into one of two records that alternate (each half the partition):
+:class:`~firmware.modules.dataman.records.RecordPair`, the scheme the fence and rally stores
+share, as PX4 alternates DM_KEY_WAYPOINTS_OFFBOARD_0/1. A power cut at any byte of a save
 therefore leaves either the old or the new mission, never a mix and never none.
 
 The partition bounds the mission: :attr:`MissionStore.capacity` items, what one record (half the
-partition) holds: 75 in the FMUv2's 8 KiB waypoint partition. The FRAM's other half holds the
-parameters, so the partition cannot grow; real PX4 on FMUv2 keeps dataman on the SD card, and
-the demo's missions have 6-7 items. The mission protocol refuses a longer one before it is sent
-(MAV_MISSION_NO_SPACE, as PX4 does). A mission becomes active only once it is saved: a save
-that fails raises :class:`SaveError` and leaves the previous mission active, in memory and in
-storage, so an accepted mission is always the one that comes back after a power cycle.
+partition) holds: 65 in the FMUv2's 7 KiB mission region (the waypoint partition's last KiB
+holds the fence and rally points, see :mod:`firmware.modules.dataman`). The FRAM's other half
+holds the parameters, so the partition cannot grow; real PX4 on FMUv2 keeps dataman on the SD
+card, and the demo's missions have 6-7 items. The mission protocol refuses a longer one before
+it is sent (MAV_MISSION_NO_SPACE, as PX4 does). A mission becomes active only once it is saved:
+a save that fails raises :class:`SaveError` and leaves the previous mission active, in memory
+and in storage, so an accepted mission is always the one that comes back after a power cycle.
 """
 
 from __future__ import annotations
 
 import struct
-import zlib
 from collections.abc import Callable, Iterable
-from typing import Any, Protocol
+from typing import Any
 
+from firmware.modules.dataman.records import RECORDS, Partition, RecordPair
 from firmware.platform.msgdef import MessageRegistry, default_registry
-from firmware.platform.params import seq_newer
 
-__all__ = ["MAX_ITEMS", "MISSION_SLOTS", "MissionStore", "Partition", "SaveError", "StoreError"]
+__all__ = ["MAX_ITEMS", "MISSION_SLOTS", "RECORDS", "MissionStore", "Partition", "SaveError",
+           "StoreError"]
 
 #: number of mission slots (PX4's DM_KEY_WAYPOINTS_OFFBOARD_0 / _1)
 MISSION_SLOTS = 2
@@ -42,11 +42,9 @@ MISSION_SLOTS = 2
 MAX_ITEMS = 500
 
 _MAGIC = b"DMM2"
-#: magic, save number, dataman_id, count, current_seq, update counter, CRC-32 of the rest
-_HEADER = struct.Struct("<4sIBHiHI")
-_FIELDS = struct.Struct("<IBHiH")  # what the CRC covers before the items
-#: records in the partition, written in turn
-RECORDS = 2
+#: after the magic and save number: dataman_id, count, current_seq, update counter
+#: (the record is magic, save number, these, CRC-32: :class:`RecordPair`)
+_META = "BHiH"
 
 
 class StoreError(ValueError):
@@ -59,14 +57,6 @@ class SaveError(RuntimeError):
     is not; the previous mission is still the active one."""
 
 
-class Partition(Protocol):
-    size: int
-
-    def read(self, offset: int, n: int) -> bytes | None: ...
-
-    def write(self, offset: int, data: bytes) -> bool: ...
-
-
 class MissionStore:
     """Two mission slots in memory; the active one mirrored to a partition if given."""
 
@@ -75,19 +65,13 @@ class MissionStore:
         self.registry = registry or default_registry()
         self.item_cls = self.registry.cls("mission_item")
         self._item_size = len(self.item_cls().pack())
-        self.partition = partition
+        self.records = RecordPair(partition, _MAGIC, _META, self._body_len)
         self.slots: list[list[Any]] = [[] for _ in range(MISSION_SLOTS)]
         #: the active mission: slot, item count, item to start/resume at, upload counter
         self.dataman_id = 0
         self.count = 0
         self.current_seq = 0
         self.update_counter = 0
-        self.saves = 0
-        self.save_failures = 0
-        #: save number of the newest record in the partition, and which record holds it
-        #: (None: no valid record yet, the next save goes to record 0)
-        self.save_seq = 0
-        self.newest_record: int | None = None
         #: called after the active mission or its current item changed (the module publishes
         #: the ``mission`` topic from here, as PX4's mavlink mission manager does)
         self.listeners: list[Callable[[], None]] = []
@@ -146,7 +130,7 @@ class MissionStore:
         part = self.partition
         if part is None:
             return MAX_ITEMS
-        return max(0, min(MAX_ITEMS, (self._record_bytes() - _HEADER.size) // self._item_size))
+        return max(0, min(MAX_ITEMS, self.records.body_room() // self._item_size))
 
     def commit(self, dataman_id: int, count: int, current_seq: int = 0) -> None:
         """Make ``count`` items of slot ``dataman_id`` the active mission and save it.
@@ -208,12 +192,32 @@ class MissionStore:
 
     # -- persistence ----------------------------------------------------------------------------
 
-    def record_size(self, count: int) -> int:
-        return _HEADER.size + count * self._item_size
+    @property
+    def partition(self) -> Partition | None:
+        """Where the mission is saved (None: memory only); the records' partition."""
+        return self.records.part
 
-    def _record_bytes(self) -> int:
-        """The size of each of the :data:`RECORDS` records (the partition split evenly)."""
-        return 0 if self.partition is None else self.partition.size // RECORDS
+    @partition.setter
+    def partition(self, part: Partition | None) -> None:
+        self.records.part = part
+
+    @property
+    def saves(self) -> int:
+        return self.records.saves
+
+    @property
+    def save_failures(self) -> int:
+        return self.records.failures
+
+    def record_size(self, count: int) -> int:
+        """Bytes a saved mission of ``count`` items takes (header and items)."""
+        return self.records.header_size + count * self._item_size
+
+    def _body_len(self, meta: tuple[int, ...]) -> int:
+        dm, count = meta[0], meta[1]
+        if dm >= MISSION_SLOTS:
+            raise ValueError("no such slot")
+        return count * self._item_size
 
     def save(self) -> None:
         """Write the active mission to the partition (no-op without one); :class:`SaveError`
@@ -226,73 +230,28 @@ class MissionStore:
                       counter: int) -> bool:
         """The mission into the record that does not hold the newest save; False (and
         counted) if it failed, the newest record still the one a load finds."""
-        part = self.partition
-        if part is None:
+        if self.partition is None:
             return True
         try:
             body = b"".join(it.pack() for it in items)
         except (struct.error, OverflowError, ValueError):
-            self.save_failures += 1  # a field the record cannot hold (no upload stores one)
+            self.records.failures += 1  # a field the record cannot hold (no upload stores one)
             return False
-        if _HEADER.size + len(body) > self._record_bytes():
-            self.save_failures += 1
-            return False
-        record = 0 if self.newest_record is None else (self.newest_record + 1) % RECORDS
-        seq = (self.save_seq + 1) & 0xFFFFFFFF
-        fields = (seq, dataman_id, len(items), current_seq, counter)
-        head = _HEADER.pack(_MAGIC, *fields, zlib.crc32(_FIELDS.pack(*fields) + body))
-        base = record * self._record_bytes()
-        ok = bool(part.write(base + _HEADER.size, body)) if body else True
-        ok = ok and bool(part.write(base, head))
-        if ok:
-            self.save_seq, self.newest_record = seq, record
-        self.saves += ok
-        self.save_failures += not ok
-        return ok
-
-    def _read_record(self, record: int) -> tuple[tuple[int, int, int, int, int], bytes] | str:
-        """Record ``record``'s fields (save number, dataman_id, count, current_seq, counter)
-        and items, or why it holds no valid mission."""
-        part = self.partition
-        assert part is not None
-        base = record * self._record_bytes()
-        head = part.read(base, _HEADER.size)
-        if head is None or len(head) < _HEADER.size:
-            return "unreadable"
-        magic, seq, dm, count, cur, counter, crc = _HEADER.unpack(head)
-        if magic != _MAGIC:
-            return "empty"
-        if dm >= MISSION_SLOTS or self.record_size(count) > self._record_bytes():
-            return "header invalid"
-        body = part.read(base + _HEADER.size, count * self._item_size) if count else b""
-        fields = (seq, dm, count, cur, counter)
-        if body is None or len(body) != count * self._item_size or \
-                zlib.crc32(_FIELDS.pack(*fields) + body) != crc:
-            return "corrupt (CRC)"
-        return fields, body
+        return self.records.write((dataman_id, len(items), current_seq, counter), body)
 
     def load(self) -> str:
         """Read the newest valid mission saved in the partition; the message says what
         happened (a damaged record is named, the other one still loads)."""
         if self.partition is None:
             return "no mission storage"
-        best: tuple[int, tuple[int, int, int, int, int], bytes] | None = None
-        problems = []
-        for record in range(RECORDS):
-            got = self._read_record(record)
-            if isinstance(got, str):
-                if got != "empty":
-                    problems.append(f"record {record} {got}")
-                continue
-            if best is None or seq_newer(got[0][0], best[1][0]):
-                best = (record, *got)
-        note = f" ({', '.join(problems)}; ignored)" if problems else ""
-        if best is None:
-            return ("no mission stored" if not problems else "no valid mission stored") + note
-        record, (seq, dm, count, cur, counter), body = best
+        got = self.records.load()
+        note = self.records.note()
+        if got is None:
+            return ("no mission stored" if not self.records.problems
+                    else "no valid mission stored") + note
+        (dm, count, cur, counter), body = got
         size = self._item_size
         self.slots[dm] = [self.item_cls.unpack(body[i * size:(i + 1) * size])
                           for i in range(count)]
         self.dataman_id, self.count, self.current_seq, self.update_counter = dm, count, cur, counter
-        self.save_seq, self.newest_record = seq, record
         return f"mission of {count} items loaded" + note

@@ -35,7 +35,9 @@ CAPABILITIES = (mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mav.MAV_PROTOCOL_CAP
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
                 | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                | mav.MAV_PROTOCOL_CAPABILITY_FTP)
+                | mav.MAV_PROTOCOL_CAPABILITY_FTP
+                | mav.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE   # fence and rally lists (PX4)
+                | mav.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
 #: the FMUv2's USB ids (3D Robotics), as PX4 reports them
 VENDOR_ID, PRODUCT_ID = 0x26AC, 0x0011
 _GLOBAL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT,
@@ -148,6 +150,12 @@ class CommandService:
         if m.target_component not in (0, inst.compid, mav.MAV_COMP_ID_ALL):
             inst.rx_not_for_us += 1
             return  # for another component of this system (a camera, a gimbal)
+        if command == mav.MAV_CMD_INJECT_FAILURE and not self._failure_injection_enabled():
+            # PX4's receiver: without SYS_FAILURE_EN the command is denied, never published
+            inst.send_text(mav.MAV_SEVERITY_WARNING,
+                           "Failure injection disabled: set SYS_FAILURE_EN to 1")
+            inst.ack_command(command, mav.MAV_RESULT_DENIED, src_sys, src_comp)
+            return
         local = self.local.get(command)
         if local is not None:
             self._local_p = (*p, p5, p6, p7)
@@ -187,6 +195,11 @@ class CommandService:
             self._pub = inst.module.advertise("vehicle_command")
         self._pub.publish(c)
         self.forwarded += 1
+
+    def _failure_injection_enabled(self) -> bool:
+        """SYS_FAILURE_EN (PX4: ``Mavlink::failure_injection_enabled``); off if undeclared."""
+        params = self.inst.system.params
+        return params is not None and bool(params.get("SYS_FAILURE_EN", 0))
 
     # -- answered here ----------------------------------------------------------------------
 

@@ -10,9 +10,10 @@ Download: MISSION_REQUEST_LIST -> MISSION_COUNT; MISSION_REQUEST_INT/MISSION_REQ
 sequence number; the GCS's MISSION_ACK ends it. Also MISSION_CLEAR_ALL, MISSION_SET_CURRENT,
 and MISSION_ITEM_REACHED when the navigator reports a new reached item.
 
-Fence and rally point lists have no storage or user in this flight stack: requests for them
-are answered MAV_MISSION_UNSUPPORTED (and AUTOPILOT_VERSION does not claim those
-capabilities), which QGroundControl handles.
+Fence and rally point lists (mission_type FENCE and RALLY) go to
+:class:`~firmware.modules.mavlink.fence_rally.PointsService` and dataman's fence and rally
+stores; MISSION_CLEAR_ALL with MAV_MISSION_TYPE_ALL clears all three lists (PX4). Other
+mission types are MAV_MISSION_UNSUPPORTED.
 
 Bad input: a MISSION_COUNT beyond what the storage holds is MAV_MISSION_NO_SPACE at once (as
 PX4); every item, float or int, goes through one check (:func:`check_item`) that answers
@@ -120,6 +121,10 @@ class MissionService:
         self._result_sub = inst.module.subscribe("mission_result")
         self._last_reached = -1
         self.uploads = 0
+        from firmware.modules.mavlink.fence_rally import PointsService
+
+        #: the fence and rally lists' side of the protocol
+        self.points = PointsService(inst)
 
     def handlers(self) -> dict[int, Callable[[Any], None]]:
         table: dict[int, Callable[[Any], None]] = {
@@ -144,6 +149,7 @@ class MissionService:
                 fn(m)
             except Exception as exc:  # noqa: BLE001 - a GCS message must get an answer
                 self._up = None
+                self.points.up = None
                 self.inst.handler_failed(m, exc)
                 self._ack(m, mav.MAV_MISSION_ERROR, int(getattr(m, "mission_type", 0)))
         return handle
@@ -158,6 +164,11 @@ class MissionService:
     def _ack(self, m: Any, result: int, mission_type: int = 0) -> None:
         self.inst.send(mav.MAVLink_mission_ack_message(m.get_srcSystem(), m.get_srcComponent(),
                                                        result, mission_type))
+
+    def _for_points(self, m: Any) -> bool:
+        """Whether ``m`` is for the fence or rally list (then the points service has it)."""
+        return int(getattr(m, "mission_type", 0)) in (mav.MAV_MISSION_TYPE_FENCE,
+                                                      mav.MAV_MISSION_TYPE_RALLY)
 
     def _check_type(self, m: Any) -> Any:
         """The store for a mission-type request, or None after answering why not."""
@@ -174,6 +185,9 @@ class MissionService:
     # -- upload -----------------------------------------------------------------------------
 
     def _on_count(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_count(m)
+            return
         store = self._check_type(m)
         if store is None:
             return
@@ -202,6 +216,9 @@ class MissionService:
         up["tries"] += 1
 
     def _on_item(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_item(m)
+            return
         up = self._up
         if getattr(m, "mission_type", 0) != mav.MAV_MISSION_TYPE_MISSION:
             self._ack(m, mav.MAV_MISSION_UNSUPPORTED, m.mission_type)
@@ -307,6 +324,9 @@ class MissionService:
         return True
 
     def _on_request_list(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_request_list(m)
+            return
         store = self._check_type(m)
         if store is None or self._busy(m):
             return
@@ -315,6 +335,9 @@ class MissionService:
                                                          store.count, 0))
 
     def _on_request(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_request(m)
+            return
         store = self._check_type(m)
         if store is None or self._busy(m):
             return
@@ -352,6 +375,9 @@ class MissionService:
                                                 alt, 0)
 
     def _on_ack(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_ack(m)
+            return
         self._down_partner = None
         up = self._up
         if up is not None and m.type == mav.MAV_MISSION_OPERATION_CANCELLED and \
@@ -362,11 +388,38 @@ class MissionService:
     # -- other ------------------------------------------------------------------------------
 
     def _on_clear(self, m: Any) -> None:
+        if self._for_points(m):
+            self.points.on_clear(m)
+            return
+        if int(getattr(m, "mission_type", 0)) == mav.MAV_MISSION_TYPE_ALL:
+            self._clear_all(m)
+            return
         store = self._check_type(m)
         if store is None:
             return
         self._up = None
         self._commit_or_error(m, store.clear)
+
+    def _clear_all(self, m: Any) -> None:
+        """MISSION_CLEAR_ALL for MAV_MISSION_TYPE_ALL: mission, fence and rally points (PX4);
+        one MISSION_ACK, ERROR if any of them could not be saved."""
+        from firmware.modules.dataman.store import SaveError, StoreError
+
+        stores = [self.store(), self.points.store(mav.MAV_MISSION_TYPE_FENCE),
+                  self.points.store(mav.MAV_MISSION_TYPE_RALLY)]
+        if any(st is None for st in stores):
+            self.inst.send_text(mav.MAV_SEVERITY_ERROR, "Mission storage (dataman) not running")
+            self._ack(m, mav.MAV_MISSION_ERROR, mav.MAV_MISSION_TYPE_ALL)
+            return
+        self._up = self.points.up = None
+        result = mav.MAV_MISSION_ACCEPTED
+        for st in stores:
+            try:
+                st.clear()
+            except (SaveError, StoreError) as exc:
+                self.inst.send_text(mav.MAV_SEVERITY_CRITICAL, f"Not cleared: {exc}")
+                result = mav.MAV_MISSION_ERROR
+        self._ack(m, result, mav.MAV_MISSION_TYPE_ALL)
 
     def _on_set_current(self, m: Any) -> None:
         store = self.store()
@@ -384,6 +437,7 @@ class MissionService:
         self.inst.send_stream_once(mav.MAVLINK_MSG_ID_MISSION_CURRENT)
 
     def update(self, now_us: int) -> None:
+        self.points.update(now_us)
         up = self._up
         if up is not None and now_us - up["sent_us"] >= RETRY_US:
             if up["tries"] >= MAX_RETRIES:
