@@ -90,3 +90,91 @@ def test_joystick_flies_position_mode_without_rc(hil_vehicle):
     assert v.read("armed") and v.read("nav_state").lower() == "position"
     assert v.read("alt_agl_m") > 1.5
     v.wait_for("rc_signal_lost", within=2.0)  # the joystick stopped
+
+
+# -- offboard mode (issue 21) ---------------------------------------------------------------
+
+POS_ONLY = 0b0000_1111_1111_1000   # x, y, z used; velocity, acceleration, yaw rate ignored
+VEL_ONLY = 0b0000_1101_1100_0111   # vx, vy, vz and yaw used
+
+
+def _lpos(v):
+    """The estimator's local position (NED, m) now."""
+    v.sampler.new_sample()
+    return v.sampler.topic("vehicle_local_position")
+
+
+def _stream(v, seconds, pos=None, vel=None, yaw=0.0, rate_hz=20, until=None):
+    """SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (position or velocity) for up to ``seconds``
+    of virtual time, or until ``until()`` holds; returns the seconds streamed."""
+    mask = POS_ONLY if pos is not None else VEL_ONLY
+    x, y, z = pos if pos is not None else (0.0, 0.0, 0.0)
+    vx, vy, vz = vel if vel is not None else (0.0, 0.0, 0.0)
+    n = int(seconds * rate_hz)
+    for i in range(n):
+        v.gcs.send(mav.MAVLink_set_position_target_local_ned_message(
+            0, 1, 1, mav.MAV_FRAME_LOCAL_NED, mask, x, y, z, vx, vy, vz, 0, 0, 0, yaw, 0))
+        v.run(1.0 / rate_hz)
+        if until is not None and until():
+            return (i + 1) / rate_hz
+    return n / rate_hz
+
+
+@pytest.mark.slow
+def test_offboard_square_velocity_and_loss(hil_vehicle):
+    """pymavlink as an offboard companion, PX4's rules (in one flight, to keep it short):
+    without a setpoint stream the switch to Offboard is refused; with one at 20 Hz it is
+    accepted; a square of four 5 m position setpoints at 4 m is flown corner by corner (each
+    reached within 1 m); 1 m/s north in velocity setpoints moves the vehicle north at about
+    that speed; when the stream stops, after COM_OF_LOSS_T (1 s) the commander says so and
+    flies COM_OBL_RC_ACT's mode (0: Position, RC being there)."""
+    v = hil_vehicle
+    gcs = v.gcs
+    v.wait_for("home_set", within=40.0, step=0.2)
+    v.dev["safety"].press(v.orch.t_ns + 100_000_000, hold_s=1.5)
+    v.wait_for("topic.px4io_status.status_safety_off", within=5.0)
+    assert gcs.arm(timeout_s=2.0).result == mav.MAV_RESULT_ACCEPTED
+    assert gcs.takeoff(4.0).result == mav.MAV_RESULT_ACCEPTED
+    v.wait_for("alt_agl_m > 3.6", within=15.0, step=0.1)
+
+    # (1) no stream: refused, the vehicle stays where it was
+    ack = gcs.set_mode(6)
+    assert ack.result != mav.MAV_RESULT_ACCEPTED
+    assert v.read("nav_state").lower() != "offboard"
+
+    # a stream first (hold here), then the switch
+    lp = _lpos(v)
+    x0, y0, z0 = lp["x"], lp["y"], lp["z"]
+    _stream(v, 0.5, pos=(x0, y0, z0))
+    mark = gcs.mark()
+    assert gcs.set_mode(6).result == mav.MAV_RESULT_ACCEPTED
+    _stream(v, 0.3, pos=(x0, y0, z0))
+    assert v.read("nav_state").lower() == "offboard"
+
+    # (2) the square
+    for dx, dy in ((5.0, 0.0), (5.0, 5.0), (0.0, 5.0), (0.0, 0.0)):
+        tx, ty = x0 + dx, y0 + dy
+
+        def there(tx=tx, ty=ty):
+            p = _lpos(v)
+            return math.hypot(p["x"] - tx, p["y"] - ty) < 1.0 and abs(p["z"] - z0) < 1.0
+        took = _stream(v, 10.0, pos=(tx, ty, z0), until=there)
+        assert there(), (dx, dy, _lpos(v))
+        assert took < 10.0
+    assert v.read("nav_state").lower() == "offboard"
+
+    # (3) velocity: 1 m/s north for 3 s; speed measured over the last 2 s
+    _stream(v, 1.0, vel=(1.0, 0.0, 0.0))
+    xa, ta = _lpos(v)["x"], v.t_s
+    _stream(v, 2.0, vel=(1.0, 0.0, 0.0))
+    lp = _lpos(v)
+    speed_n = (lp["x"] - xa) / (v.t_s - ta)
+    assert 0.75 < speed_n < 1.25, speed_n
+    assert abs(lp["vy"]) < 0.3 and abs(lp["z"] - z0) < 1.0
+
+    # (4) the stream stops: COM_OF_LOSS_T (1 s) later the failsafe takes over
+    took = v.wait_for("nav_state != Offboard", within=1.6, step=0.05)
+    assert took > 0.8, took
+    assert v.read("nav_state").lower() == "position" and v.read("failsafe")
+    texts = [m.text for m in gcs.messages("STATUSTEXT", since=mark)]
+    assert any("offboard control lost" in t.lower() for t in texts), texts

@@ -60,6 +60,7 @@ class VehicleData:
         self.battery = sub("battery_status")
         self.manual = sub("manual_control_setpoint")
         self.telemetry = [sub("telemetry_status", i) for i in range(TELEMETRY_INSTANCES)]
+        self.offboard = sub("offboard_control_mode")
         self.rc_seen = False
         self.gcs_seen = False
 
@@ -108,6 +109,26 @@ class VehicleData:
         if ok:
             self.rc_seen = True
         return ok
+
+    def offboard_ok(self, now: int, timeout_us: int, eph_max: float) -> bool:
+        """Is there an offboard signal Offboard mode can fly on (PX4's OffboardChecks)? The
+        last offboard_control_mode arrived within ``timeout_us`` (COM_OF_LOSS_T: setpoints
+        streamed faster than that) and says something is controlled, and the estimate that
+        needs has not gone invalid (position: local position; velocity: local velocity)."""
+        m = self.offboard.node.last
+        if m is None or self.age_us(self.offboard, now) >= timeout_us:
+            return False
+        if not (m.position or m.velocity or m.acceleration or m.attitude or m.body_rate):
+            return False
+        if m.position:
+            return self.lpos_valid(now, eph_max)
+        if m.velocity:
+            lp = self.lpos.node.last
+            return (lp is not None and lp.v_xy_valid and lp.v_z_valid
+                    and self.age_us(self.lpos, now) < POS_TIMEOUT_US)
+        if m.acceleration:
+            return self.attitude.node.last is not None
+        return True
 
     def gcs_present(self, now: int, timeout_us: int) -> bool:
         newest = 0
@@ -182,6 +203,9 @@ def preflight_failures(cmd: CommanderModule, nav_state: int, now: int) -> list[F
         out.append(Failure(False, f"Preflight Fail: arming not possible in {mode} mode"))
     if "never" in req:
         out.append(Failure(False, f"Preflight Fail: {mode} mode not supported"))
+    if "offboard" in req and not data.offboard_ok(now, cmd.of_loss_us, p["COM_POS_FS_EPH"]):
+        out.append(Failure(False, "Preflight Fail: Offboard mode requires an offboard signal "
+                                  "(setpoints streamed at more than 2 Hz)"))
     eph = p["COM_POS_FS_EPH"]
     if "alt" in req and not data.alt_valid(now):
         out.append(Failure(False, f"Preflight Fail: {mode} mode requires altitude estimate"))

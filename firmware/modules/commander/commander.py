@@ -48,6 +48,7 @@ _S_GYRO, _S_ACCEL, _S_MAG, _S_BARO, _S_GPS = 0x1, 0x2, 0x4, 0x8, 0x20
 _S_RATE, _S_ATT, _S_YAW, _S_ALT, _S_XY = 0x400, 0x800, 0x1000, 0x2000, 0x4000
 _S_MOTORS, _S_RC, _S_AHRS, _S_BATTERY, _S_PREARM = 0x8000, 0x10000, 0x200000, 0x2000000, \
     0x10000000
+_S_GEOFENCE = 0x100000  # MAV_SYS_STATUS_GEOFENCE
 
 
 class CommanderModule(CommandHandler, WorkItemModule):
@@ -88,6 +89,9 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.dl_lost_count = 0
         self.battery_warning = 0
         self.home_valid = False
+        self.offboard_lost = False
+        self.offboard_lost_us = 0
+        self.offboard_mode = modes.offboard_flags(True, False, False, False, False)
         self.geofence = Geofence(self)
         self.failure_detector = FailureDetector(self)
 
@@ -126,6 +130,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.p = {d.name: self.param(d.name) for d in self.PARAMS}
         self.rc_loss_us = int(self.p["COM_RC_LOSS_T"] * 1e6)
         self.dl_loss_us = int(self.p["COM_DL_LOSS_T"]) * 1_000_000
+        self.of_loss_us = int(self.p["COM_OF_LOSS_T"] * 1e6)
         params = self.system.params
         self.sys_id = int(params.get("MAV_SYS_ID", 1) or 1) if params is not None else 1
 
@@ -281,7 +286,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
         d, eph = self.data, self.p["COM_POS_FS_EPH"]
         return {"manual": self.rc_ok, "alt": d.alt_valid(now), "lpos": d.lpos_valid(now, eph),
                 "gpos": d.gpos_valid(now, eph), "home": self.home_valid,
-                "mission": self.mission_count() > 0, "never": False}
+                "mission": self.mission_count() > 0, "never": False,
+                "offboard": d.offboard_ok(now, self.of_loss_us, eph)}
 
     def set_user_mode(self, nav: int, why: str = "") -> tuple[bool, str]:
         """The pilot (or GCS) selects a mode. Armed, the mode must be able to run now;
@@ -333,6 +339,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         if self.arming_state != ARMED:
             self.nav_state, self.failsafe_active, self.failsafe_action = \
                 self.user_nav, False, fs.A_NONE
+            self.offboard_lost = False
             return
         in_air = not self.data.landed()
         self._failsafe_triggers(now, in_air)
@@ -346,6 +353,18 @@ class CommanderModule(CommandHandler, WorkItemModule):
         target = self.user_nav
         if action != fs.A_NONE:
             target = modes.AUTO_LOITER if delayed else (fs.action_nav(action) or target)
+        elif self._offboard_lost(now):
+            lost_nav = fs.offboard_loss_nav(int(self.p["COM_OBL_RC_ACT"]),
+                                            self.requirements_ok(now))
+            if lost_nav is None:
+                self.disarm(R_FAILSAFE, force=True)
+                self._update_nav(now)
+                return
+            # COM_FAIL_ACT_T: hold before a Return/Land/Descend reaction, as for every cause
+            delay_us = int(self.p["COM_FAIL_ACT_T"] * 1e6)
+            held = lost_nav in (modes.AUTO_RTL, modes.AUTO_LAND, modes.DESCEND) and \
+                now - self.offboard_lost_us < delay_us
+            target = modes.AUTO_LOITER if held else lost_nav
         nav = target if target == modes.TERMINATION else \
             fs.fallback(target, self.requirements_ok(now))
         if nav != self.nav_state and nav != target:
@@ -356,6 +375,22 @@ class CommanderModule(CommandHandler, WorkItemModule):
             fs.A_NONE if nav == self.user_nav else fs.A_LAND if nav == modes.AUTO_LAND
             else fs.A_DESCEND if nav == modes.DESCEND else fs.A_HOLD)
         self.failsafe_active = nav != self.user_nav or action != fs.A_NONE
+
+    def _offboard_lost(self, now: int) -> bool:
+        """Offboard mode selected, armed, and its signal gone for COM_OF_LOSS_T (PX4's
+        offboard_control_signal_lost as a mode fallback: not latched, so Offboard resumes
+        when setpoints come back, unless the pilot picked another mode meanwhile)."""
+        lost = self.user_nav == modes.OFFBOARD and not self.requirements_ok(now)["offboard"]
+        if lost and not self.offboard_lost:
+            self.offboard_lost_us = now
+            act = int(self.p["COM_OBL_RC_ACT"])
+            nav = fs.offboard_loss_nav(act, self.requirements_ok(now))
+            what = "disarm" if nav is None else modes.NAV_NAMES.get(nav, str(nav)).lower()
+            self.error(f"Failsafe: offboard control lost, {what}")
+        elif not lost and self.offboard_lost and self.user_nav == modes.OFFBOARD:
+            self.info("Offboard control regained")
+        self.offboard_lost = lost
+        return lost
 
     # -- home -----------------------------------------------------------------------------------
 
@@ -388,7 +423,13 @@ class CommanderModule(CommandHandler, WorkItemModule):
         armed = self.arming_state == ARMED
         ready = self.arming_state == STANDBY and not any(not f.at_arming for f in self.failures)
         bat = self.battery_warning
-        sig = (self.arming_state, self.nav_state, self.user_nav, self.failsafe_active,
+        ocm = self.data.offboard.node.last
+        if ocm is not None:
+            self.offboard_mode = modes.offboard_flags(
+                bool(ocm.position), bool(ocm.velocity), bool(ocm.acceleration),
+                bool(ocm.attitude), bool(ocm.body_rate))
+        sig = (self.offboard_mode, self.arming_state, self.nav_state, self.user_nav,
+               self.failsafe_active,
                self.failsafe_action, self.rc_lost, self.dl_lost, ready, bat, self.kill_engaged,
                self.have_taken_off, self.failure_detector.status, self.failure_detector.lockdown)
         if sig == self._last_sig and now - self._last_pub_us < PUBLISH_INTERVAL_US:
@@ -423,7 +464,10 @@ class CommanderModule(CommandHandler, WorkItemModule):
 
         m = self._mode
         m.timestamp = now
-        for k, v in self._flags.get(self.nav_state, self._flags[modes.MANUAL]).items():
+        flags = modes.control_flags(modes.OFFBOARD, self.offboard_mode) \
+            if self.nav_state == modes.OFFBOARD else \
+            self._flags.get(self.nav_state, self._flags[modes.MANUAL])
+        for k, v in flags.items():
             setattr(m, k, v)
         m.flag_armed = armed
         self._pub_mode.publish(m)
@@ -471,6 +515,10 @@ class CommanderModule(CommandHandler, WorkItemModule):
         put(_S_MOTORS, True, True, armed)
         put(_S_BATTERY, d.battery.node.last is not None, bat < 2)
         put(_S_PREARM, True, not self.failures)
+        gf_present, gf_enabled, gf_ok = self.geofence.sensor_bits()
+        put(_S_GEOFENCE, gf_present, gf_ok, gf_enabled)
+        if gf_ok:  # healthy even when no fence is set: MAVProxy reads a clear bit as a breach
+            health |= _S_GEOFENCE
         return present, enabled, health
 
     def status_lines(self) -> list[str]:

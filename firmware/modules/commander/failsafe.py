@@ -21,7 +21,7 @@ from typing import Final
 from firmware.modules.commander import modes
 
 __all__ = ["ACTION_NAMES_LOWER", "A_DESCEND", "A_DISARM", "A_HOLD", "A_LAND", "A_NONE", "A_RTL", "A_TERMINATE",
-           "Failsafe", "action_from_param", "fallback"]
+           "Failsafe", "action_from_param", "fallback", "offboard_loss_nav"]
 
 A_NONE, A_HOLD, A_RTL, A_LAND, A_DESCEND, A_DISARM, A_TERMINATE = range(7)
 #: names of the actions, for messages ("Failsafe: manual control lost, return")
@@ -69,6 +69,36 @@ def fallback(nav: int, ok: dict[str, bool]) -> int:
         else:
             nav = modes.AUTO_LAND if ok.get("gpos") and ok.get("alt") else modes.DESCEND
     return modes.DESCEND
+
+
+#: COM_OBL_RC_ACT value -> the mode to fly (None: disarm), PX4's fromOffboardLossActParam
+_OBL_NAV: Final[dict[int, int | None]] = {
+    0: modes.POSCTL, 1: modes.ALTCTL, 2: modes.STAB, 3: modes.AUTO_RTL, 4: modes.AUTO_LAND,
+    5: modes.AUTO_LOITER, 6: modes.TERMINATION, 7: None}
+
+
+def offboard_loss_nav(com_obl_rc_act: int, ok: dict[str, bool]) -> int | None:
+    """The mode that replaces Offboard when its signal is lost (None: disarm).
+
+    As PX4 1.14's Failsafe::checkModeFallback: COM_OBL_RC_ACT names the mode (unknown values:
+    Position); a manual mode that cannot run (no manual control, no position) falls to the next
+    (Position -> Altitude -> Stabilized, COM_POSCTL_NAVL 0), and one that still cannot run
+    becomes Return; :func:`fallback` then takes Return -> Land -> Descend as usual. So with RC
+    the default flies Position mode, without RC it returns."""
+    nav = _OBL_NAV.get(int(com_obl_rc_act), modes.POSCTL)
+    if nav is None or nav == modes.TERMINATION:
+        return nav
+
+    def can_run(n: int) -> bool:
+        return all(ok.get(r, False) for r in modes.REQUIREMENTS.get(n, frozenset()))
+
+    if nav == modes.POSCTL and not can_run(nav):
+        nav = modes.ALTCTL
+    if nav == modes.ALTCTL and not can_run(nav):
+        nav = modes.STAB
+    if not can_run(nav) and nav in (modes.STAB, modes.ALTCTL, modes.POSCTL):
+        nav = modes.AUTO_RTL
+    return nav
 
 
 def action_nav(action: int) -> int | None:

@@ -11,7 +11,7 @@ from typing import Final
 
 __all__ = [
     "FLTMODE_TO_NAV", "MODE_NAMES", "NAV_NAMES", "NO_ARMING", "REQUIREMENTS",
-    "control_flags", "custom_to_nav", "nav_to_custom",
+    "control_flags", "custom_to_nav", "nav_to_custom", "offboard_flags",
 ]
 
 # vehicle_status.NAVIGATION_STATE_*
@@ -82,8 +82,10 @@ MODE_NAMES: Final[dict[str, int]] = {
 }
 
 # What a mode needs to run. "manual": stick input; "alt": a valid altitude estimate;
-# "lpos": local horizontal position; "gpos": global position; "home"; "mission"; "never":
-# not implemented in this stack (offboard, precision landing).
+# "lpos": local horizontal position; "gpos": global position; "home"; "mission"; "offboard":
+# a fresh offboard_control_mode whose controlled quantities have a valid estimate (PX4's
+# mode_req_offboard_signal, OffboardChecks); "never": not implemented in this stack
+# (precision landing).
 REQUIREMENTS: Final[dict[int, frozenset[str]]] = {
     MANUAL: frozenset({"manual"}), STAB: frozenset({"manual"}), ACRO: frozenset({"manual"}),
     ALTCTL: frozenset({"manual", "alt"}), POSCTL: frozenset({"manual", "alt", "lpos"}),
@@ -93,7 +95,7 @@ REQUIREMENTS: Final[dict[int, frozenset[str]]] = {
     AUTO_TAKEOFF: frozenset({"alt", "lpos", "gpos"}),
     AUTO_LAND: frozenset({"alt", "gpos"}),
     DESCEND: frozenset(), TERMINATION: frozenset(),
-    OFFBOARD: frozenset({"never"}), AUTO_PRECLAND: frozenset({"never"}),
+    OFFBOARD: frozenset({"offboard"}), AUTO_PRECLAND: frozenset({"never"}),
 }
 
 #: modes from which arming is refused (PX4: the vehicle would not know what to do on the ground)
@@ -123,9 +125,30 @@ for _nav in (AUTO_MISSION, AUTO_LOITER, AUTO_RTL, AUTO_TAKEOFF, AUTO_LAND, AUTO_
     _FLAGS[_nav] = _AUTO_F | _RATES | _ATT | _ALT | _CLIMB | _POS | _VEL | _ACC
 
 
-def control_flags(nav_state: int) -> dict[str, bool]:
-    """vehicle_control_mode flags for a navigation state (multicopter)."""
+def offboard_flags(position: bool, velocity: bool, acceleration: bool, attitude: bool,
+                   body_rate: bool) -> int:
+    """The controllers Offboard mode runs for what offboard_control_mode says is controlled:
+    the highest level given decides, and every loop below it runs (PX4's ModeUtil
+    control_mode.cpp). Nothing given: position (the vehicle holds where it is)."""
+    if position:
+        return _RATES | _ATT | _ALT | _CLIMB | _POS | _VEL | _ACC
+    if velocity:
+        return _RATES | _ATT | _ALT | _CLIMB | _VEL | _ACC
+    if acceleration:
+        return _RATES | _ATT | _ACC
+    if attitude:
+        return _RATES | _ATT
+    if body_rate:
+        return _RATES
+    return _FLAGS[OFFBOARD]
+
+
+def control_flags(nav_state: int, offboard: int | None = None) -> dict[str, bool]:
+    """vehicle_control_mode flags for a navigation state (multicopter); ``offboard``: the
+    :func:`offboard_flags` to use in Offboard mode."""
     f = _FLAGS.get(nav_state, _MANUAL_F | _RATES | _ATT)
+    if nav_state == OFFBOARD and offboard is not None:
+        f = offboard
     out = {
         "flag_control_manual_enabled": bool(f & _MANUAL_F),
         "flag_control_auto_enabled": bool(f & _AUTO_F),

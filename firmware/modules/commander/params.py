@@ -83,6 +83,19 @@ PARAMS: Final[tuple[ParamDef, ...]] = (
              short="Set RC loss failsafe mode", values=_ACT),
     ParamDef("NAV_DLL_ACT", "INT32", 0, min=0, max=6, group=_S,
              short="Set data link loss failsafe mode", values=_ACT),
+    ParamDef("COM_OF_LOSS_T", "FLOAT", 1.0, min=0.0, max=60.0, unit="s", group=_C,
+             decimals=2, short="Time-out for offboard control loss",
+             long="Offboard mode can be entered, and stays, only while setpoints "
+                  "(offboard_control_mode) arrived within this time; after it the offboard "
+                  "loss failsafe (COM_OBL_RC_ACT) acts. PX4 1.14's default."),
+    ParamDef("COM_OBL_RC_ACT", "INT32", 0, min=0, max=7, group=_S,
+             short="Set offboard loss failsafe mode",
+             values={0: "Position mode", 1: "Altitude mode", 2: "Stabilized", 3: "Return mode",
+                     4: "Land mode", 5: "Hold mode", 6: "Terminate", 7: "Disarm"},
+             long="What the vehicle does when offboard setpoints stop for COM_OF_LOSS_T. As "
+                  "in PX4 1.14 (which dropped COM_OBL_ACT), one parameter serves with and "
+                  "without RC: a manual mode that cannot run without manual control falls "
+                  "back to Return (then Land, Descend)."),
     ParamDef("CBRK_IO_SAFETY", "INT32", 0, min=0, max=22027, group="Circuit Breaker",
              short="Circuit breaker for IO safety",
              long="Set to 22027 to disable the safety switch check."),

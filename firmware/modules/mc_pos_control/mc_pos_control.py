@@ -5,7 +5,9 @@ control mode enables climb-rate control (altitude, position and auto modes) and 
 armed. Each cycle:
 
 1. the flight task for the mode (auto from the triplet, manual position, manual altitude) makes
-   the trajectory setpoint (published as ``trajectory_setpoint``);
+   the trajectory setpoint (published as ``trajectory_setpoint``); in Offboard the offboard
+   controller's ``trajectory_setpoint`` is followed instead and nothing is published over it
+   (``offboard_task.py``, as PX4 runs no flight task in Offboard);
 2. the takeoff state machine decides whether the vehicle sits on the ground (thrust 0, level,
    integrators reset), ramps the thrust limit up for takeoff (``MPC_TKO_RAMP_T``), or flies;
 3. :class:`PositionControl` turns the setpoint into a thrust vector, published with the attitude
@@ -29,6 +31,7 @@ from firmware.modules.mc_pos_control.flight_tasks import (
 )
 from firmware.modules.mc_pos_control.geo import MapProjection
 from firmware.modules.mc_pos_control.hover_thrust_estimator import HoverThrustEstimator
+from firmware.modules.mc_pos_control.offboard_task import TaskOffboard
 from firmware.modules.mc_pos_control.params import PARAMS
 from firmware.modules.mc_pos_control.position_control import (
     PositionControl,
@@ -95,6 +98,8 @@ class McPosControlModule(WorkItemModule):
         self.sub_man = self.subscribe("manual_control_setpoint")
         self.sub_land = self.subscribe("vehicle_land_detected")
         self.sub_param = self.subscribe("parameter_update")
+        # Offboard: the MAVLink receiver's setpoints (this module publishes none meanwhile)
+        self.sub_traj = self.subscribe("trajectory_setpoint")
         self.pub_traj = self.advertise("trajectory_setpoint")
         self.pub_lsp = self.advertise("vehicle_local_position_setpoint")
         self.pub_att = self.advertise("vehicle_attitude_setpoint")
@@ -105,7 +110,7 @@ class McPosControlModule(WorkItemModule):
         self.hte_msg = orb.new("hover_thrust_estimate")
         self.manual = orb.new("manual_control_setpoint")
         self.tasks = {"auto": TaskAuto(self), "position": TaskManualPosition(self),
-                      "altitude": TaskManualAltitude(self)}
+                      "altitude": TaskManualAltitude(self), "offboard": TaskOffboard(self)}
         self._load_params()
         self.hte.reset(self.prm["MPC_THR_HOVER"])
 
@@ -169,6 +174,11 @@ class McPosControlModule(WorkItemModule):
 
     def _select_task(self) -> _Task | None:
         m = self.mode
+        if m is not None and m.flag_control_offboard_enabled:
+            # PX4: the position controller runs in Offboard whenever offboard_control_mode
+            # asks for position, velocity or acceleration control
+            return self.tasks["offboard"] if m.flag_multicopter_position_control_enabled \
+                else None
         if m is None or not m.flag_control_climb_rate_enabled:
             return None
         if m.flag_control_auto_enabled:
@@ -311,7 +321,8 @@ class McPosControlModule(WorkItemModule):
             m.position[i], m.velocity[i], m.acceleration[i] = task.pos[i], task.vel[i], \
                 task.acc[i]
         m.yaw, m.yawspeed = yaw_sp, task.yawspeed
-        self.pub_traj.publish(m)
+        if task.name != "offboard":
+            self.pub_traj.publish(m)
         s = self.lsp_msg
         s.timestamp = now
         s.x, s.y, s.z = task.pos
