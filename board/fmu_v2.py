@@ -21,6 +21,8 @@ Ports that leave the board (see board/wiring.py):
 * ``udp_in`` / ``udp_out``: the FMU's network interface as PX4 SITL has one, carrying whole
   datagrams ``(fmu_port, remote_port, bytes)``; the host side (hil/mavlink_bridge.py) owns the
   real sockets. The mavlink module binds its UDP instances in ``udp_handlers``.
+* ``failure_request`` (out) / ``failure_reply`` (in): MAV_CMD_INJECT_FAILURE handed to the
+  orchestrator's fault injector and its answer (:meth:`FmuV2Board.request_failure`).
 
 Firmware start-up (``firmware=``):
 
@@ -212,6 +214,10 @@ class FmuV2Board(Board):
         self.expose_input("power", self._on_power)
         self.hw_inputs |= {"truth", "power"}  # physics at the sensors, dividers at the ADC
         self._emit_reboot = self.expose_output("reboot")
+        # MAV_CMD_INJECT_FAILURE: requests to the orchestrator's fault injector and its answers
+        self._emit_failure = self.expose_output("failure_request")
+        self.failure_reply_handler: Any = None
+        self.expose_input("failure_reply", self._on_failure_reply)
         self.udp_out = self.expose_output("udp_out")
         self.udp_handlers: dict[int, Any] = {}
         self.expose_input("udp_in", self._on_udp)
@@ -287,6 +293,18 @@ class FmuV2Board(Board):
         # As PX4 does, give the acknowledgement time to leave before going down.
         k = self.kernel
         k.call_later(100_000_000, lambda: self._emit_reboot(k.now_ns, int(to_bootloader)))
+
+    def request_failure(self, seq: int, unit: int, failure_type: int, instance: int) -> None:
+        """MAV_CMD_INJECT_FAILURE (the failure_injector module): ask the orchestrator, which owns
+        the fault catalogue (hil/faults), to inject a failure as PX4's simulator does in SITL.
+        The answer ``(seq, mav_result, text)`` comes back on ``failure_reply`` and goes to
+        :attr:`failure_reply_handler`; nothing in the board acts on the request itself."""
+        self._emit_failure(self.kernel.now_ns, (seq, unit, failure_type, instance))
+
+    def _on_failure_reply(self, t_ns: int, payload: Any) -> None:
+        handler = self.failure_reply_handler
+        if handler is not None:
+            handler(t_ns, payload)
 
     def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
         """Bytes typed on the console UART: NuttX readline's line editing (the shell's

@@ -28,7 +28,7 @@ from board.endpoint import OP_ADVANCE, OP_CALL, OP_STOP, R_ERROR, R_OK, R_RESULT
 from board.endpoint import Endpoint, build_board
 from hil.ipc import ChannelClosed, ChannelPair, ChannelSpec, ChannelTimeout, PeerDied, SpinPolicy
 
-__all__ = ["STATS_ENV", "ProcessHandle", "board_process_main", "resolve_kwargs"]
+__all__ = ["STATS_ENV", "OffsetHandle", "ProcessHandle", "board_process_main", "resolve_kwargs"]
 
 _dumps = marshal.dumps
 _loads = marshal.loads
@@ -217,3 +217,26 @@ class ProcessHandle:
             self.proc.kill()
             self.proc.join(timeout=timeout_s)
         self._ch.close()
+
+
+class OffsetHandle:
+    """A rebooted board: its clock started at ``offset_ns`` of the orchestrator's time."""
+
+    def __init__(self, inner: Any, offset_ns: int) -> None:
+        self.inner = inner
+        self.offset = offset_ns
+        self.name = inner.name
+        self.ports = inner.ports
+
+    def post_advance(self, start_ns: int, until_ns: int, inputs: list) -> None:
+        off = self.offset
+        self.inner.post_advance(start_ns - off, until_ns - off,
+                                [(p, max(t - off, 0), v) for p, t, v in inputs])
+
+    def wait_advance(self) -> tuple[list, int | None]:
+        out, nxt = self.inner.wait_advance()
+        off = self.offset
+        return [(p, t + off, v) for p, t, v in out], (None if nxt is None else nxt + off)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)

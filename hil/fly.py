@@ -52,6 +52,9 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
     signal.signal(signal.SIGTERM, on_term)
     try:
         with orch:
+            from hil.faults import Injector
+
+            Injector(orch, dev).install()  # MAV_CMD_INJECT_FAILURE (SYS_FAILURE_EN 1)
             console = dev["console"]
             announce({"console_tcp": console.tcp_port, "console_pty": console.pty_name,
                       "mavlink_udp": [14550, 14540], "speed": speed})

@@ -81,6 +81,12 @@ class Orchestrator:
         self._reboot_boards: set[str] = set()
         self._reboot_pending: list[str] = []
         self.reboots: dict[str, int] = {}
+        #: what boards ask of the host on an ``X_request`` output: ``hook(board, payload)``
+        #: per port returns the payload answered on the board's ``X_reply`` input (None: no
+        #: answer). The fault injector serves "failure_request" (hil.faults.Injector.install).
+        self.request_hooks: dict[str, Callable[[str, Any], Any]] = {}
+        self._request_boards: set[str] = set()
+        self._requests: list[tuple[str, str, Any]] = []
         #: next event time each board reported (None: nothing scheduled); 0 forces an exchange
         self._next_ns: dict[str, int | None] = {name: 0 for name in boards}
         self.skip_idle = True
@@ -155,6 +161,9 @@ class Orchestrator:
                                                      resolve_kwargs(spec.kwargs))
             self._reboot_boards = {n for n, h in self.handles.items()
                                    if any(p[0] == "reboot" for p in h.ports)}
+            self._request_boards = self._reboot_boards | {
+                n for n, h in self.handles.items() if any(p[0].endswith("_request")
+                                                          for p in h.ports)}
             for w in self.wiring:
                 for (board, port), want in ((w.src, ("out", "inout")), (w.dst, ("in", "inout"))):
                     if board == WORLD:
@@ -239,11 +248,21 @@ class Orchestrator:
             self._trace.write(name, until, inputs, outputs)
         if outputs:
             self._route_all(name, outputs)
-            if name in self._reboot_boards and any(r[0] == "reboot" for r in outputs):
-                self._reboot_pending.append(name)
+            if name in self._request_boards:
+                for rec in outputs:
+                    if rec[0] == "reboot" and name in self._reboot_boards:
+                        if name not in self._reboot_pending:
+                            self._reboot_pending.append(name)
+                    elif rec[0] in self.request_hooks:
+                        self._requests.append((name, rec[0], rec[2]))
 
     def _end_quantum(self, until: int) -> None:
         self.t_ns = until
+        while self._requests:  # before a reboot, so the answer reaches the board that asked
+            name, port, payload = self._requests.pop(0)
+            reply = self.request_hooks[port](name, payload)
+            if reply is not None and name not in self.dead:
+                self._inbox[name].append((port[:-len("request")] + "reply", self.t_ns, reply))
         while self._reboot_pending:
             self._restart(self._reboot_pending.pop(0))
         self.quanta += 1
@@ -383,7 +402,9 @@ class Orchestrator:
             from hil.boardproc import resolve_kwargs
 
             inner = LocalHandle(name, spec.factory, resolve_kwargs(spec.kwargs))
-        self.handles[name] = _OffsetHandle(inner, self.t_ns)
+        from hil.boardproc import OffsetHandle
+
+        self.handles[name] = OffsetHandle(inner, self.t_ns)
         self._inbox[name] = []
         self._next_ns[name] = 0
         self._pending[name] = []
@@ -573,26 +594,3 @@ class _WireFault:
         self.last = rec
         self.records_lost += 1
         return []
-
-
-class _OffsetHandle:
-    """A rebooted board: its clock started at ``offset_ns`` of the orchestrator's time."""
-
-    def __init__(self, inner: Any, offset_ns: int) -> None:
-        self.inner = inner
-        self.offset = offset_ns
-        self.name = inner.name
-        self.ports = inner.ports
-
-    def post_advance(self, start_ns: int, until_ns: int, inputs: list) -> None:
-        off = self.offset
-        self.inner.post_advance(start_ns - off, until_ns - off,
-                                [(p, max(t - off, 0), v) for p, t, v in inputs])
-
-    def wait_advance(self) -> tuple[list, int | None]:
-        out, nxt = self.inner.wait_advance()
-        off = self.offset
-        return [(p, t + off, v) for p, t, v in out], (None if nxt is None else nxt + off)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)

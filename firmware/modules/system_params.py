@@ -38,6 +38,13 @@ PARAMS: Final[tuple[ParamDef, ...]] = (
     ParamDef("SYS_PARAM_VER", "INT32", 1, min=0, group="System",
              short="Parameter version",
              long="Compared with the airframe's version to decide whether to reset parameters."),
+    ParamDef("SYS_FAILURE_EN", "INT32", 0, min=0, max=1, group="System",
+             short="Enable failure injection",
+             long="If enabled, MAV_CMD_INJECT_FAILURE is passed to the failure_injector module, "
+                  "which has the orchestrator apply a fault of its catalogue (docs/faults.md). "
+                  "If disabled, the command is denied. Only for testing: never enable it on a "
+                  "vehicle that flies (PX4 meaning).",
+             values={0: "Disabled", 1: "Enabled"}),
     ParamDef("SDLOG_MODE", "INT32", 0, min=-1, max=3, group="SD Logging",
              short="Logging mode",
              long="When the logger writes a file.",

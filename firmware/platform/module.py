@@ -296,6 +296,7 @@ FMU_V2_MODULES: Final[dict[str, str]] = {
     "navigator": "firmware.modules.navigator:NavigatorModule",
     "land_detector": "firmware.modules.land_detector:LandDetectorModule",
     "uavcan": "firmware.drivers.uavcan:UavcanModule",
+    "failure_injector": "firmware.modules.failure_injector:FailureInjectorModule",
 }
 
 

@@ -162,8 +162,16 @@ class Injector:
         self._installed = False
 
     def install(self) -> Injector:
+        """Hook into the orchestrator: timers on every quantum, and the boards'
+        MAV_CMD_INJECT_FAILURE requests (:mod:`hil.faults.inject_failure`)."""
         if not self._installed:
             self.orch.on_quantum.append(lambda orch: self.tick())
+            hooks = getattr(self.orch, "request_hooks", None)
+            if hooks is not None:
+                from hil.faults.inject_failure import FailureInjection
+
+                self.failure_injection = FailureInjection(self)
+                hooks["failure_request"] = self.failure_injection.handle
             self._installed = True
         return self
 
