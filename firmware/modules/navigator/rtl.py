@@ -10,6 +10,11 @@
 * LAND at home; LANDED when the land detector says so (the commander then auto-disarms).
 
 Without a home position it lands where it is; on the ground it does nothing.
+
+The destination is PX4's RTL_TYPE 0 (the default, "return to the closest safe point"): home
+or, when a ground station uploaded rally points (dataman's rally list), whichever of home and
+the rally points is closest to where Return starts. The phases are the same over a rally
+point, its altitude (above home, or AMSL, as uploaded) being the ground the vehicle lands on.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ class RtlMode(NavMode):
         self.state = LANDED
         self.rtl_alt = 0.0
         self.loiter_since_us = 0
+        #: the rally point Return flies to (-1: home)
+        self.rally_index = -1
 
     def on_activation(self) -> None:
         nav = self.nav
@@ -46,6 +53,7 @@ class RtlMode(NavMode):
             self.home = (pos[0], pos[1], pos[2] - 0.0, nav.heading())
             self._enter(LAND, here=pos)
             return
+        home = self._destination(pos, home)
         self.home = home
         p = nav.p
         dist = distance_m(pos[0], pos[1], home[0], home[1])
@@ -57,6 +65,25 @@ class RtlMode(NavMode):
         nav.info(f"Return: at {self.rtl_alt - home[2]:.0f} m above home, "
                  f"{dist:.0f} m away")
         self._enter(CLIMB if pos[2] < self.rtl_alt - p["NAV_MC_ALT_RAD"] else RETURN)
+
+    def _destination(self, pos: tuple[float, float, float],
+                     home: tuple[float, float, float, float]
+                     ) -> tuple[float, float, float, float]:
+        """Home, or the closest rally point if one is closer than home (RTL_TYPE 0)."""
+        from firmware.modules.dataman import find_rally
+
+        store = find_rally(self.nav.system)
+        best, best_dist = home, distance_m(pos[0], pos[1], home[0], home[1])
+        chosen = -1
+        for i, rp in enumerate(store.points if store is not None else ()):
+            d = distance_m(pos[0], pos[1], rp.lat, rp.lon)
+            if d < best_dist:
+                alt = home[2] + rp.alt_m if rp.relative else rp.alt_m
+                best, best_dist, chosen = (rp.lat, rp.lon, alt, home[3]), d, i
+        if chosen >= 0:
+            self.nav.info(f"Return: to rally point {chosen}, {best_dist:.0f} m away")
+        self.rally_index = chosen
+        return best
 
     def _enter(self, state: int, here: tuple[float, float, float] | None = None) -> None:
         nav = self.nav
@@ -94,7 +121,8 @@ class RtlMode(NavMode):
                 nav.set_current(SP_LAND, here[0], here[1], here[2], nav.heading())
             else:
                 nav.set_current(SP_LAND, lat, lon, alt, yaw)
-                nav.info("Return: landing at home")
+                nav.info("Return: landing at home" if self.rally_index < 0 else
+                         f"Return: landing at rally point {self.rally_index}")
 
     def on_active(self) -> None:
         nav = self.nav
