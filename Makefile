@@ -26,11 +26,10 @@ demo: $(STAMP)
 
 # Two passes: everything but the wall-clock-paced tests, spread over the cores (pytest-xdist),
 # then the paced ones alone, so that no other test takes the CPU they need to keep pace.
-# --dist loadgroup keeps a module that shares one costly fixture (a flight, a compiled tier:
-# xdist_group) on one worker and starts those groups first; the tier's equivalence test builds a
-# quick tier of its own when `make native` has not (tests/hil/test_native.py).
+# The tier's equivalence test builds a quick tier of its own when `make native` has not, on one
+# worker while the other runs the rest (tests/hil/test_native.py).
 test: $(STAMP)
-	$(PY) -m pytest -q -n auto --dist loadgroup -m "not paced"
+	$(PY) -m pytest -q -n auto -m "not paced"
 	$(PY) -m pytest -q -m paced
 
 # The long fuzz run: every fuzz target (tests/fuzzing.py) with FUZZ_SCALE times the budget it

@@ -2,10 +2,11 @@
 
 The equivalence tests need a compiled tier: the user's if it is fresh (`make native`), else
 one built here into a temporary folder at gcc -O0 (quicker than -O3; the
-equivalence is about what mypyc makes of the source, not gcc's optimiser), never a skip. The
-tests that build share one build: the module is one xdist group (`make test` runs
-``--dist loadgroup``, which starts the largest groups first, so the build overlaps the rest
-of the suite).
+equivalence is about what mypyc makes of the source, not gcc's optimiser), never a skip. One
+test function uses it, so that under xdist one worker builds it while the other runs the rest
+of the suite (pytest-xdist 3.8's ``--dist loadgroup`` does not group under pytest 9, whose
+node ids it no longer rewrites: two tests needing the tier could land on both workers and
+build it twice).
 """
 
 from __future__ import annotations
@@ -20,15 +21,12 @@ import pytest
 
 from hil import native
 
-pytestmark = pytest.mark.xdist_group("native")
 
-
-@pytest.fixture(scope="module")
-def compiled_tier(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def _compiled_tier(tmp: Path) -> Path:
     """A compiled tier of the current sources: the user's when fresh, else a quick one."""
     if native.status()[0] == "fresh":
         return native.native_dir()
-    d = native.build(dest=tmp_path_factory.mktemp("native") / "tier", opt_level="0")
+    d = native.build(dest=tmp / "tier", opt_level="0")
     assert (d / "manifest.json").exists()
     return d
 
@@ -97,10 +95,12 @@ def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> d
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_compiled_and_pure_write_byte_identical_logs(tmp_path: Path,
-                                                      compiled_tier: Path) -> None:
+def test_compiled_and_pure_agree(tmp_path: Path) -> None:
     """Ten virtual seconds of the whole system (drivers, sensors, estimator, controllers,
-    px4io and the IO, logger with the raw sensors), compiled and pure: same log bytes."""
+    px4io and the IO, logger with the raw sensors), compiled and pure: same log bytes; and
+    the DSM decoder's frames (:func:`_dsm_frames_agree`)."""
+    compiled_tier = _compiled_tier(tmp_path)
+    _dsm_frames_agree(tmp_path, compiled_tier)
     compiled = _check(tmp_path, "compiled", {"PYTHONPATH": str(compiled_tier)}, 10.0)
     pure = _check(tmp_path, "pure", {}, 10.0)
     assert compiled["compiled"] is True and not compiled["kernel"].endswith(".py")
@@ -152,7 +152,7 @@ print(json.dumps(out))
 """
 
 
-def test_compiled_dsm_decoder_matches_pure(tmp_path: Path, compiled_tier: Path) -> None:
+def _dsm_frames_agree(tmp_path: Path, compiled_tier: Path) -> None:
     """The DSM decoder compiled gives the pure decoder's frames: mypyc once compiled a
     narrowed ``self.mode is None`` check into a TypeError on the frame that ends the guess."""
     assert "ioproc/rc/dsm.py" in native.COMPILED

@@ -16,9 +16,7 @@ import pyulog
 from hil.accuracy import TruthSample, estimator_accuracy
 from hil.flight import FlightConfig, fly
 
-# One xdist group: the module's flights run on one worker, so the seed-1 flight that four tests
-# read is flown once (spread over workers, each worker would fly it for its share).
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("flight")]
+pytestmark = pytest.mark.slow
 
 
 def _fly(tmp_path_factory, seed: int, name: str) -> dict:
