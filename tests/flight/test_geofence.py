@@ -1,10 +1,20 @@
-"""The commander's geofence: GF_MAX_HOR_DIST / GF_MAX_VER_DIST from home with the GF_ACTION
-reaction, on the hand-fed commander rig of test_commander."""
+"""The commander's geofence: GF_MAX_HOR_DIST / GF_MAX_VER_DIST from home and the uploaded
+polygons and circles (dataman's fence list) with the GF_ACTION reaction, on the hand-fed
+commander rig of test_commander."""
 
 from __future__ import annotations
 
 import pytest
 
+from firmware.modules.commander.geofence import inside_polygon
+from firmware.modules.dataman.points import (
+    FENCE_CIRCLE_EXCLUSION,
+    FENCE_CIRCLE_INCLUSION,
+    FENCE_POLYGON_EXCLUSION,
+    FENCE_POLYGON_INCLUSION,
+    Point,
+    self_intersecting,
+)
 from firmware.modules.navigator.geo import offset_deg
 from tests.flight.test_commander import ARMED, HOME, LAND, LOITER, POSCTL, RTL, Rig
 
@@ -68,3 +78,99 @@ def test_no_fence_without_limits_or_on_the_ground() -> None:
     _move(ground, 50.0, up_m=0.0)                   # landed: no reaction
     ground.run(0.3)
     assert not ground.status.failsafe
+
+
+# -- the uploaded fence (dataman's fence list, issue 21) ----------------------------------------
+
+def _vertices(half_m: float, north_m: float = 0.0) -> list[tuple[int, int]]:
+    """A square of ``half_m`` around a point ``north_m`` north of HOME, as degE7 vertices."""
+    out = []
+    for dn, de in ((-1, -1), (-1, 1), (1, 1), (1, -1)):
+        lat, lon = offset_deg(HOME[0], HOME[1], north_m + dn * half_m, de * half_m)
+        out.append((round(lat * 1e7), round(lon * 1e7)))
+    return out
+
+
+def _polygon(cmd: int, half_m: float, north_m: float = 0.0) -> list[Point]:
+    return [Point(cmd, lat, lon, 0.0, True, 4) for lat, lon in _vertices(half_m, north_m)]
+
+
+def _circle(cmd: int, north_m: float, radius_m: float) -> Point:
+    lat, lon = offset_deg(HOME[0], HOME[1], north_m, 0.0)
+    return Point(cmd, round(lat * 1e7), round(lon * 1e7), 0.0, True, 0, radius_m)
+
+
+def _fenced(points: list[Point], action: int = 2) -> Rig:
+    rig = Rig(modules=("dataman", "commander"),
+              params={"COM_FAIL_ACT_T": 0.0, "GF_ACTION": action})
+    rig.run(0.3)
+    rig.system.modules.get("dataman").fence.replace(points)
+    assert rig.set_mode(3) == 0
+    assert rig.arm() == 0
+    rig.take_off(5.0)
+    rig.run(0.3)
+    return rig
+
+
+def test_leaving_the_inclusion_polygon_takes_gf_action() -> None:
+    rig = _fenced(_polygon(FENCE_POLYGON_INCLUSION, 20.0), action=3)
+    _move(rig, 19.0)
+    rig.run(0.3)
+    assert rig.status.nav_state == POSCTL and not rig.status.failsafe
+    _move(rig, 21.0)
+    rig.run(0.1)
+    assert rig.status.nav_state == RTL and rig.status.failsafe
+    assert "Geofence violation" in rig.dmesg()
+    assert "Failsafe: geofence breached, return" in rig.dmesg()
+
+
+def test_entering_an_exclusion_circle_holds_until_out_again() -> None:
+    fence = _polygon(FENCE_POLYGON_INCLUSION, 100.0) + [
+        _circle(FENCE_CIRCLE_EXCLUSION, 40.0, 10.0)]
+    rig = _fenced(fence, action=2)
+    _move(rig, 29.0)
+    rig.run(0.2)
+    assert rig.status.nav_state == POSCTL
+    _move(rig, 31.0)
+    rig.run(0.1)
+    assert rig.status.nav_state == LOITER and rig.status.failsafe
+    _move(rig, 25.0)
+    rig.run(0.1)
+    assert rig.status.nav_state == POSCTL
+
+
+def test_an_exclusion_polygon_and_an_inclusion_circle_all_must_pass() -> None:
+    """PX4's isInsidePolygonOrCircle: every area's check must pass (inside the inclusion
+    circle and outside the exclusion polygon)."""
+    fence = [_circle(FENCE_CIRCLE_INCLUSION, 0.0, 60.0)] + \
+        _polygon(FENCE_POLYGON_EXCLUSION, 5.0, north_m=30.0)
+    rig = _fenced(fence, action=5)
+    _move(rig, 30.0)
+    rig.run(0.1)
+    assert rig.status.nav_state == LAND
+    ok = _fenced(fence, action=5)
+    _move(ok, -30.0)
+    ok.run(0.2)
+    assert ok.status.nav_state == POSCTL
+    far = _fenced(fence, action=5)
+    _move(far, -61.0)
+    far.run(0.1)
+    assert far.status.nav_state == LAND
+
+
+def test_an_area_without_home_is_dropped_as_px4_does() -> None:
+    rig = _fenced(_polygon(FENCE_POLYGON_INCLUSION, 5.0, north_m=100.0), action=2)
+    assert "Geofence invalid, doesn't contain Home position" in rig.dmesg()
+    assert rig.status.nav_state == POSCTL and not rig.status.failsafe
+    assert rig.system.modules.get("commander").geofence.areas == []
+
+
+def test_pnpoly_and_self_intersection() -> None:
+    square = [(0.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0, 0.0)]
+    assert inside_polygon(0.5, 0.5, square) and not inside_polygon(1.5, 0.5, square)
+    assert not self_intersecting([(0, 0), (0, 10), (10, 10), (10, 0)])
+    assert self_intersecting([(0, 0), (10, 10), (10, 0), (0, 10)])           # bow-tie
+    assert self_intersecting([(0, 0), (0, 10), (0, 5)])                      # folds back
+    assert self_intersecting([(0, 0), (0, 10), (10, 10), (0, 10)])           # repeated vertex
+    assert self_intersecting([(0, 0), (5, 5), (10, 10)])                     # no area
+    assert not self_intersecting([(0, 0), (0, 10), (5, 5), (10, 10), (10, 0)])  # concave

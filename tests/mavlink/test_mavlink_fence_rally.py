@@ -223,3 +223,56 @@ def test_fence_and_rally_survive_a_power_cycle(tmp_path):
         assert [fields(m) for m in download(s.gcs, RALLY)] == [fields(m) for m in PLAN_RALLY]
     finally:
         s.close()
+
+
+# -- a flight: the uploaded fence breached, GF_ACTION Return, to the rally point --------------
+
+def _texts(gcs: Any, mark: int) -> list[str]:
+    return [m.text if isinstance(m.text, str) else m.text.decode("latin-1")
+            for m in gcs.messages("STATUSTEXT", mark)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hil_vehicle", [{"params": {
+    "GF_ACTION": 3, "COM_FAIL_ACT_T": 0.0, "RTL_RETURN_ALT": 4.0, "RTL_DESCEND_ALT": 3.0,
+    "RTL_LAND_DELAY": 0.0}}], indirect=True)
+def test_breach_returns_to_the_rally_point(hil_vehicle):
+    """The whole vehicle (boards, world, RC, pymavlink GCS): an inclusion square 12 m around
+    home and a rally point 7 m north of home are uploaded; a mission flies north out of the
+    square. At the edge the commander reports the violation and returns (GF_ACTION 3), and
+    Return goes to the rally point, closer than home (RTL_TYPE 0), where it lands and
+    disarms."""
+    from firmware.modules.navigator.geo import offset_deg
+
+    v = hil_vehicle
+    gcs = v.gcs
+    v.wait_for("home_set", within=40.0, step=0.2)
+    home = gcs.last["HOME_POSITION"]
+    lat0, lon0 = home.latitude / 1e7, home.longitude / 1e7
+
+    def e7(north_m: float, east_m: float) -> tuple[int, int]:
+        lat, lon = offset_deg(lat0, lon0, north_m, east_m)
+        return round(lat * 1e7), round(lon * 1e7)
+
+    fence = [item(0, _INCL, *e7(n, e), 4.0) for n, e in ((-12, -12), (-12, 12), (12, 12),
+                                                          (12, -12))]
+    rally = [item(0, mav.MAV_CMD_NAV_RALLY_POINT, *e7(7.0, 0.0), z=0.0, mtype=RALLY)]
+    assert upload(gcs, FENCE, fence) == mav.MAV_MISSION_ACCEPTED
+    assert upload(gcs, RALLY, rally) == mav.MAV_MISSION_ACCEPTED
+    north = offset_deg(lat0, lon0, 40.0, 0.0)
+    assert gcs.upload_mission([(lat0, lon0, 4.0, mav.MAV_CMD_NAV_TAKEOFF),
+                               (north[0], north[1], 4.0)]) == mav.MAV_MISSION_ACCEPTED
+    v.dev["safety"].press(v.orch.t_ns + 100_000_000, hold_s=1.5)
+    v.wait_for("topic.px4io_status.status_safety_off", within=5.0)
+    mark = gcs.mark()
+    assert gcs.arm(timeout_s=2.0).result == mav.MAV_RESULT_ACCEPTED
+    assert gcs.start_mission().result == mav.MAV_RESULT_ACCEPTED
+    v.wait_for("nav_state == 'Return'", within=30.0, step=0.1)
+    assert 11.0 < v.read("home_distance_m") < 16.0   # turned back at the fence, not at 40 m
+    texts = _texts(gcs, mark)
+    assert "[commander] Geofence violation" in texts
+    assert "[commander] Failsafe: geofence breached, return" in texts
+    v.wait_for("not armed", within=40.0, step=0.2)
+    assert v.read("on_ground")
+    assert abs(v.read("home_distance_m") - 7.0) < 2.0   # landed at the rally point, not home
+    assert any(t.startswith("[navigator] Return: to rally point 0") for t in _texts(gcs, mark))

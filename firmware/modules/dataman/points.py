@@ -24,7 +24,7 @@ from firmware.modules.dataman.records import Partition, RecordPair
 __all__ = ["FENCE_CIRCLE_EXCLUSION", "FENCE_CIRCLE_INCLUSION", "FENCE_CMDS",
            "FENCE_POLYGON_EXCLUSION", "FENCE_POLYGON_INCLUSION", "FENCE_RETURN_POINT",
            "FenceProblem", "Point", "PointStore", "RALLY_POINT", "fence_problem",
-           "polygons_and_circles"]
+           "polygons_and_circles", "self_intersecting"]
 
 #: MAV_CMD_NAV_FENCE_* and MAV_CMD_NAV_RALLY_POINT (MAVLink common)
 FENCE_RETURN_POINT: Final = 5000
