@@ -99,7 +99,10 @@ class HilVehicle:
         self.dev["rc"].tx.set_switch(self.orch.t_ns, name, position)
 
     def press_safety(self, hold_s: float = 1.5) -> None:
-        self.dev["safety"].press(self.orch.t_ns, hold_s=hold_s)
+        """Press the safety button 0.1 s from now (the switch refuses a press in the past,
+        and the orchestrator's time is the start of the boards' next quantum), as
+        hil/flight.py and the scenario engine do."""
+        self.dev["safety"].press(self.orch.t_ns + NS // 10, hold_s=hold_s)
 
     @property
     def gcs(self) -> Any:

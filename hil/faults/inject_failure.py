@@ -113,7 +113,7 @@ class FailureInjection:
         mav_result, text)``. Never raises: a malformed request is DENIED."""
         try:
             seq, unit, failure_type, instance = (int(x) for x in payload)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             return 0, DENIED, "malformed failure request"
         try:
             result, text = self._apply(unit, failure_type, instance)
