@@ -234,13 +234,15 @@ def _texts(gcs: Any, mark: int) -> list[str]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("hil_vehicle", [{"params": {
-    "GF_ACTION": 3, "COM_FAIL_ACT_T": 0.0, "RTL_RETURN_ALT": 4.0, "RTL_DESCEND_ALT": 3.0,
-    "RTL_LAND_DELAY": 0.0}}], indirect=True)
+    "EKF2_MAG_DECL": 2.6, "GF_ACTION": 3, "COM_FAIL_ACT_T": 0.0, "RTL_RETURN_ALT": 4.0,
+    "RTL_DESCEND_ALT": 3.0, "RTL_LAND_DELAY": 0.0}}], indirect=True)
 def test_breach_returns_to_the_rally_point(hil_vehicle):
     """The whole vehicle (boards, world, RC, pymavlink GCS): an inclusion square 12 m around
-    home and a rally point 7 m north of home are uploaded; a mission flies north out of the
-    square. At the edge the commander reports the violation and returns (GF_ACTION 3), and
-    Return goes to the rally point, closer than home (RTL_TYPE 0), where it lands and
+    home and four rally points 7 m from home (north, east, south, west) are uploaded. In a
+    4 m hover in Position mode the pilot holds the pitch stick forward and flies out (PX4
+    refuses missions and repositions beyond the fence, so the pilot is the way out). At the
+    edge the commander reports the violation and returns (GF_ACTION 3); Return goes to the
+    rally point closest to where it starts, closer than home (RTL_TYPE 0), lands there and
     disarms."""
     from firmware.modules.navigator.geo import offset_deg
 
@@ -256,23 +258,27 @@ def test_breach_returns_to_the_rally_point(hil_vehicle):
 
     fence = [item(0, _INCL, *e7(n, e), 4.0) for n, e in ((-12, -12), (-12, 12), (12, 12),
                                                           (12, -12))]
-    rally = [item(0, mav.MAV_CMD_NAV_RALLY_POINT, *e7(7.0, 0.0), z=0.0, mtype=RALLY)]
+    rally = [item(0, mav.MAV_CMD_NAV_RALLY_POINT, *e7(n, e), z=0.0, mtype=RALLY)
+             for n, e in ((7, 0), (0, 7), (-7, 0), (0, -7))]
     assert upload(gcs, FENCE, fence) == mav.MAV_MISSION_ACCEPTED
     assert upload(gcs, RALLY, rally) == mav.MAV_MISSION_ACCEPTED
-    north = offset_deg(lat0, lon0, 40.0, 0.0)
-    assert gcs.upload_mission([(lat0, lon0, 4.0, mav.MAV_CMD_NAV_TAKEOFF),
-                               (north[0], north[1], 4.0)]) == mav.MAV_MISSION_ACCEPTED
     v.dev["safety"].press(v.orch.t_ns + 100_000_000, hold_s=1.5)
     v.wait_for("topic.px4io_status.status_safety_off", within=5.0)
     mark = gcs.mark()
     assert gcs.arm(timeout_s=2.0).result == mav.MAV_RESULT_ACCEPTED
-    assert gcs.start_mission().result == mav.MAV_RESULT_ACCEPTED
-    v.wait_for("nav_state == 'Return'", within=30.0, step=0.1)
-    assert 11.0 < v.read("home_distance_m") < 16.0   # turned back at the fence, not at 40 m
+    assert gcs.takeoff(4.0).result == mav.MAV_RESULT_ACCEPTED
+    v.wait_for("alt_agl_m > 3.5", within=15.0, step=0.1)
+    v.dev["rc"].tx.set_sticks(v.orch.t_ns, roll=0.0, pitch=0.0, yaw=0.0, throttle=0.5)
+    assert gcs.set_mode(3).result == mav.MAV_RESULT_ACCEPTED  # Position
+    v.wait_for("nav_state == 'Position'", within=2.0, step=0.1)
+    push = v.fault("vehicle.geofence_breach", "pilot", stick=0.6)
+    v.wait_for("nav_state == 'Return'", within=20.0, step=0.1)
+    v.clear(push)
+    assert 11.0 < v.read("home_distance_m") < 16.0   # at the fence
     texts = _texts(gcs, mark)
     assert "[commander] Geofence violation" in texts
     assert "[commander] Failsafe: geofence breached, return" in texts
     v.wait_for("not armed", within=40.0, step=0.2)
     assert v.read("on_ground")
-    assert abs(v.read("home_distance_m") - 7.0) < 2.0   # landed at the rally point, not home
-    assert any(t.startswith("[navigator] Return: to rally point 0") for t in _texts(gcs, mark))
+    assert abs(v.read("home_distance_m") - 7.0) < 2.0   # landed at a rally point, not home
+    assert any(t.startswith("[navigator] Return: to rally point") for t in _texts(gcs, mark))
