@@ -47,6 +47,7 @@ from firmware.modules.dataman.points import (
     RALLY_POINT,
     Point,
     fence_problem,
+    lat_lon_deg,
 )
 from firmware.modules.mavlink.mission import (
     INT32_MAX,
@@ -262,7 +263,8 @@ class PointsService:
             self.inst.send(mav.MAVLink_mission_item_int_message(*args, lat_e7, lon_e7, alt,
                                                                 mtype))
         else:
-            self.inst.send(mav.MAVLink_mission_item_message(*args, p.lat, p.lon, alt, mtype))
+            lat, lon = lat_lon_deg(p)
+            self.inst.send(mav.MAVLink_mission_item_message(*args, lat, lon, alt, mtype))
 
     def on_ack(self, m: Any) -> None:
         up = self.up
