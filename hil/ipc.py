@@ -270,7 +270,9 @@ class ChannelPair:
         capacity = _pad8(capacity)
         ctx = ctx or multiprocessing.get_context("spawn")
         size = _LINE + 2 * (_RING_HDR + capacity)
-        name = "hilipc_" + secrets.token_hex(6)
+        # The creator's pid in the name: whoever finds a segment left behind can tell whether
+        # its owner is still alive (another run's live channel) or gone (a leak).
+        name = f"hilipc_{os.getpid()}_{secrets.token_hex(6)}"
         shm = shared_memory.SharedMemory(name=name, create=True, size=size)
         sems = (ctx.Semaphore(0), ctx.Semaphore(0))
         # Copies: the adaptive state is per receiver, even if callers reuse one policy object.

@@ -28,8 +28,27 @@ REPO = Path(__file__).resolve().parents[2]
 SHM = Path("/dev/shm")
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def _segments() -> set[str]:
-    return {p.name for p in SHM.glob("hilipc_*")} if SHM.is_dir() else set()
+    """Channel segments this process made, or whose maker is gone (leaks). Segments of other
+    live processes (another xdist worker's flight, another run) are theirs to clean up."""
+    if not SHM.is_dir():
+        return set()
+    mine = set()
+    for p in SHM.glob("hilipc_*"):
+        pid = p.name.split("_")[1]
+        if not pid.isdigit() or int(pid) == os.getpid() or not _pid_alive(int(pid)):
+            mine.add(p.name)
+    return mine
 
 
 # ----------------------------------------------------------------------- child bodies

@@ -29,7 +29,10 @@ def test_manual_control_published_with_mavlink_source(session):
 
 
 def test_manual_control_for_another_vehicle_ignored(session):
+    # Self-contained (xdist may run it without the test above): ours first, then another's.
     gcs = session.gcs
+    gcs.send(mav.MAVLink_manual_control_message(1, 500, -250, 750, 100, 0))
+    gcs.step(0.05)
     gcs.send(mav.MAVLink_manual_control_message(9, 0, 0, 0, 0, 0))
     gcs.step(0.05)
     assert _find_manual(session)["pitch"] == 0.5  # unchanged
