@@ -43,7 +43,9 @@ def _point() -> Any:
 def test_a_fence_store_holds_the_previous_or_a_valid_new_fence(first: list, second: list
                                                                 ) -> None:
     """Invariant: PointStore.replace stores a list fence_problem accepts or raises its
-    documented error and keeps the previous one, in memory and after a reload."""
+    documented error and keeps the previous one, in memory and after a reload. (Lists are
+    compared by repr: a field no command reads, a return point's radius, may be NaN, which
+    the store keeps as it came but which never equals itself.)"""
     part = MemoryPartition(8192)
     store = PointStore("fence", _region(part, "fence"), b"DMF1", FENCE_MAX_ITEMS, fence_problem)
     kept: tuple = ()
@@ -52,14 +54,14 @@ def test_a_fence_store_holds_the_previous_or_a_valid_new_fence(first: list, seco
         try:
             store.replace(points)
         except (StoreError, SaveError):
-            assert store.points == kept
+            assert repr(store.points) == repr(kept)
             continue
         assert problem is None and len(points) <= store.capacity
         kept = tuple(points)
-        assert store.points == kept
+        assert repr(store.points) == repr(kept)
     again = PointStore("fence", _region(part, "fence"), b"DMF1", FENCE_MAX_ITEMS, fence_problem)
     again.load()
-    assert again.points == kept
+    assert repr(again.points) == repr(kept)
 
 
 @pytest.fixture(scope="module")
