@@ -47,6 +47,8 @@ FIGURES: list[Figure] = [
            "the FMU with its six sensor drivers only, spinning on the turntable", 4),
     Figure("flight_rtf", "bench_flight:bench_flight_rtf", "x real time",
            "the default flight (hil run): two board processes, world, GCS, whole mission", 7),
+    Figure("flight_rtf_over_jsbsim", "bench_flight:bench_flight_rtf_over_jsbsim", "ratio",
+           "flight_rtf over JSBSim's F450 alone, same run: comparable across machines", 20),
     Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
            "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]

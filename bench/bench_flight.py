@@ -1,18 +1,39 @@
 """The real-time factor of the default flight (``hil run``): both board processes, the world,
-the GCS, the whole mission. One run (it takes a minute or more); the figure is the run's RTF."""
+the GCS, the whole mission. One run (it takes a minute or more); the figure is the run's RTF.
+
+``flight_rtf_over_jsbsim`` divides that figure by the speed of the JSBSim F450 world alone
+(:func:`bench.bench_world.bench_rtf_jsbsim_only`), measured in the same process right after the
+flight. Both move together with the machine's speed, so the ratio says how much of the
+machine's pace the emulated boards cost, in a figure comparable across machines. The flight is
+flown once per process and shared by both figures.
+"""
 
 from __future__ import annotations
 
+import functools
 import tempfile
 
+from bench.bench_world import bench_rtf_jsbsim_only
 from hil.flight import FlightConfig, fly
 
 
-def bench_flight_rtf() -> float:
+@functools.cache
+def _flight_rtf() -> float:
     with tempfile.TemporaryDirectory() as out:
         summary = fly(FlightConfig(out_dir=out, progress=False, plot=False))
     return float(summary["rtf"])
 
 
+def bench_flight_rtf() -> float:
+    return _flight_rtf()
+
+
+def bench_flight_rtf_over_jsbsim() -> float:
+    """The default flight's real-time factor over JSBSim's alone on the same model."""
+    flight = _flight_rtf()
+    return flight / bench_rtf_jsbsim_only()
+
+
 if __name__ == "__main__":
     print(f"flight_rtf: {bench_flight_rtf():.2f}")
+    print(f"flight_rtf_over_jsbsim: {bench_flight_rtf_over_jsbsim():.4f}")
