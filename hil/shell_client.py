@@ -44,7 +44,8 @@ def withdraw() -> None:
         pass
 
 
-def _alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this pid exists (one of another user counts as alive)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -62,7 +63,7 @@ def discover() -> dict[str, Any] | None:
             info = json.loads(f.read_text())
         except (OSError, ValueError):
             continue
-        if not _alive(int(info.get("pid", 0))):
+        if not pid_alive(int(info.get("pid", 0))):
             f.unlink(missing_ok=True)  # a stale file from a killed run
             continue
         if info.get("console_tcp") and (best is None or info["started"] > best["started"]):

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mav
 
 from tests.fuzzing import fuzz
-from tests.mavlink.conftest import open_session
+from tests.mavlink.conftest import open_commander_session
 
 #: PX4 main modes 0..8 and AUTO's sub modes 0..10 often; any byte and any word too
 _CUSTOM = st.one_of(
@@ -22,10 +22,7 @@ _CUSTOM = st.one_of(
 
 @pytest.fixture(scope="module")
 def fmu(tmp_path_factory):
-    s = open_session(tmp_path_factory.mktemp("fuzz_set_mode"))
-    s.gcs.wait_heartbeat()
-    s.shell("commander start")
-    s.gcs.step(0.3)
+    s = open_commander_session(tmp_path_factory.mktemp("fuzz_set_mode"))
     yield s
     s.close()
 

@@ -23,19 +23,10 @@ from hil.ipc import (
     SpinPolicy,
     echo_server,
 )
+from hil.shell_client import pid_alive
 
 REPO = Path(__file__).resolve().parents[2]
 SHM = Path("/dev/shm")
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _segments() -> set[str]:
@@ -46,7 +37,7 @@ def _segments() -> set[str]:
     mine = set()
     for p in SHM.glob("hilipc_*"):
         pid = p.name.split("_")[1]
-        if not pid.isdigit() or int(pid) == os.getpid() or not _pid_alive(int(pid)):
+        if not pid.isdigit() or int(pid) == os.getpid() or not pid_alive(int(pid)):
             mine.add(p.name)
     return mine
 

@@ -72,6 +72,15 @@ def open_session(root: Path, gcs: GcsClient | None = None, start_udp: bool = Tru
     return s
 
 
+def open_commander_session(root: Path) -> Session:
+    """A booted FMU on the GCS link with the commander running (modes, arming, commands)."""
+    s = open_session(root)
+    s.gcs.wait_heartbeat()
+    s.shell("commander start")
+    s.gcs.step(0.3)
+    return s
+
+
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     s = open_session(tmp_path_factory.mktemp("fmu"))

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mav
 
-from tests.mavlink.conftest import open_session
+from tests.mavlink.conftest import open_commander_session, open_session
 
 FENCE, RALLY = mav.MAV_MISSION_TYPE_FENCE, mav.MAV_MISSION_TYPE_RALLY
 REL_INT = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
@@ -92,10 +92,7 @@ def _dataman(s: Any) -> Any:
 
 @pytest.fixture(scope="module")
 def vehicle(tmp_path_factory):
-    s = open_session(tmp_path_factory.mktemp("fence"))
-    s.gcs.wait_heartbeat()
-    s.shell("commander start")
-    s.gcs.step(0.3)
+    s = open_commander_session(tmp_path_factory.mktemp("fence"))
     yield s
     s.close()
 

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mav
 
-from tests.mavlink.conftest import open_session
+from tests.mavlink.conftest import open_commander_session
 
 CUSTOM = mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 #: PX4 custom (main, sub) modes settable on the ground without a mission
@@ -29,10 +29,7 @@ def custom_mode(main: int, sub: int) -> int:
 
 @pytest.fixture(scope="module")
 def vehicle(tmp_path_factory):
-    s = open_session(tmp_path_factory.mktemp("modes"))
-    s.gcs.wait_heartbeat()
-    s.shell("commander start")
-    s.gcs.step(0.3)
+    s = open_commander_session(tmp_path_factory.mktemp("modes"))
     yield s
     s.close()
 
