@@ -14,7 +14,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from hil.flight import FlightConfig, main
+    from hil.fly import honour_sigint
 
+    honour_sigint()  # stop on SIGINT even when started in the background by a script
     cfg = FlightConfig(seed=args.seed, out_dir=args.out, airframe=args.airframe,
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
                        mode="local" if args.one_process else "process",

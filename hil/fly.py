@@ -30,6 +30,20 @@ __all__ = ["main"]
 NS_PER_S = 1_000_000_000
 
 
+def honour_sigint() -> None:
+    """Make SIGINT raise KeyboardInterrupt even if this process was started with it ignored.
+
+    A shell starts background jobs (``hil fly &`` in a script) with SIGINT set to SIG_IGN, the
+    disposition is inherited, and Python then leaves it ignored instead of installing its
+    KeyboardInterrupt handler (Python docs, ``signal``: "SIGINT is translated into a
+    KeyboardInterrupt exception if the parent process has not changed it"). PX4 SITL and
+    daemon-like tools stop on ``kill -INT``; so do ``hil fly`` and ``hil run``: the handler is
+    installed explicitly and the normal clean shutdown (boards stopped, no orphans) follows.
+    Board processes ignore SIGINT themselves (hil.boardproc) and are stopped by their parent.
+    """
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
          params: dict[str, Any] | None = None, quiet: bool = False,
@@ -37,6 +51,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
+    honour_sigint()
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
                        console=True, udp_bridge=True, telem_pty=True,
                        fresh_fram=not keep_fram,
