@@ -114,6 +114,7 @@ class MavlinkInstance(WorkItem):
             ShellService,
             StatustextService,
         )
+        from firmware.modules.mavlink.systime import SystemTimeService
 
         self.params = ParamService(self)
         self.commands = CommandService(self)
@@ -123,8 +124,9 @@ class MavlinkInstance(WorkItem):
         self.offboard = OffboardService(self)
         self.statustext = StatustextService(self)
         self.ftp = FtpService(self)
+        self.systime = SystemTimeService(self)
         self.services = (self.params, self.commands, self.mission, self.shell, self.logs,
-                         self.offboard, self.statustext, self.ftp)
+                         self.offboard, self.statustext, self.ftp, self.systime)
         self.handlers: dict[int, Callable[[Any], None]] = {
             mav.MAVLINK_MSG_ID_HEARTBEAT: self._on_heartbeat,
             mav.MAVLINK_MSG_ID_PING: self._on_ping,

@@ -127,6 +127,9 @@ class MavlinkModule(ModuleBase):
         super().__init__(system, args)
         self.instances: list[MavlinkInstance] = []
         self.signing_key: bytes | None = None
+        #: UTC minus the boot clock set by a GCS's SYSTEM_TIME (0: not set), shared by the
+        #: links as PX4's CLOCK_REALTIME is (see :mod:`firmware.modules.mavlink.systime`)
+        self.gcs_utc_offset_us = 0
         self._first = parse_start(args)
 
     @classmethod

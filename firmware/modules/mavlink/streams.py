@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any, Final
 
 from pymavlink.dialects.v20 import common as mav
 
+from firmware.modules.mavlink.systime import system_time
+
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
 
@@ -332,6 +334,7 @@ STREAMS: Final[dict[str, StreamDef]] = {s.name: s for s in (
     StreamDef("EXTENDED_SYS_STATE", _extended_sys_state), StreamDef("HOME_POSITION", _home),
     StreamDef("ALTITUDE", _altitude), StreamDef("ESTIMATOR_STATUS", _estimator_status),
     StreamDef("HIGHRES_IMU", _highres_imu), StreamDef("MISSION_CURRENT", _mission_current),
+    StreamDef("SYSTEM_TIME", system_time),
 )}
 STREAM_BY_ID: Final[dict[int, StreamDef]] = {s.msg_id: s for s in STREAMS.values()}
 #: the longest stream interval: what MESSAGE_INTERVAL's int32 interval_us can report (~36 min)
@@ -341,19 +344,20 @@ _NORMAL: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 15.0, "ATTITU
            "LOCAL_POSITION_NED": 1.0, "GLOBAL_POSITION_INT": 5.0, "GPS_RAW_INT": 1.0,
            "VFR_HUD": 4.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 5.0, "SERVO_OUTPUT_RAW": 1.0,
            "EXTENDED_SYS_STATE": 1.0, "HOME_POSITION": 0.5, "ALTITUDE": 1.0,
-           "ESTIMATOR_STATUS": 0.5, "MISSION_CURRENT": 1.0}
+           "ESTIMATOR_STATUS": 0.5, "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0}
 _ONBOARD: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 5.0, "ATTITUDE": 100.0,
             "ATTITUDE_QUATERNION": 50.0, "LOCAL_POSITION_NED": 30.0,
             "GLOBAL_POSITION_INT": 50.0, "GPS_RAW_INT": 5.0, "VFR_HUD": 10.0,
             "BATTERY_STATUS": 0.5, "RC_CHANNELS": 20.0, "SERVO_OUTPUT_RAW": 10.0,
             "EXTENDED_SYS_STATE": 5.0, "HOME_POSITION": 0.5, "ALTITUDE": 10.0,
-            "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0, "MISSION_CURRENT": 1.0}
+            "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0, "MISSION_CURRENT": 1.0,
+            "SYSTEM_TIME": 1.0}
 _CONFIG: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 50.0, "ATTITUDE_QUATERNION": 50.0,
            "LOCAL_POSITION_NED": 30.0, "GLOBAL_POSITION_INT": 10.0, "GPS_RAW_INT": 10.0,
            "VFR_HUD": 20.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 10.0,
            "SERVO_OUTPUT_RAW": 20.0, "EXTENDED_SYS_STATE": 2.0, "HOME_POSITION": 0.5,
            "ALTITUDE": 10.0, "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0,
-           "MISSION_CURRENT": 1.0}
+           "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0}
 #: mode -> stream -> default rate (Hz)
 DEFAULT_RATES: Final[dict[str, dict[str, float]]] = {"normal": _NORMAL, "onboard": _ONBOARD,
                                               "config": _CONFIG, "minimal": {"HEARTBEAT": 1.0}}

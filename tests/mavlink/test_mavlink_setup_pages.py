@@ -1,0 +1,69 @@
+"""QGroundControl's set-up-page messages and commands (issue 21): SYSTEM_TIME,
+RUN_PREARM_CHECKS, motor and actuator test, against a booted FMU over its UDP link."""
+
+import time
+
+import pytest
+from pymavlink.dialects.v20 import common as mav
+
+from firmware.modules.mavlink.systime import PX4_EPOCH_US
+from tests.mavlink.conftest import open_session
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """A board of its own: the GCS-set clock is module state that other tests must not see."""
+    s = open_session(tmp_path_factory.mktemp("setup_pages"))
+    s.gcs.wait_heartbeat()
+    yield s
+    s.close()
+
+
+def _system_time_now(gcs):
+    mark = gcs.mark()
+    ack = gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [mav.MAVLINK_MSG_ID_SYSTEM_TIME])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    return gcs.wait_message("SYSTEM_TIME", since=mark)
+
+
+def test_system_time_before_gps_unknown_then_gcs_sets_it_once(fresh):
+    """Before the GPS has UTC (its first UTC comes ~2.2 s after boot here) the time is
+    unknown (0); a GCS time before PX4's epoch is ignored, a valid one sets the clock, a
+    second one does not move it (PX4's handle_message_system_time)."""
+    gcs = fresh.gcs
+    assert fresh.topic("sensor_gps") is None or not fresh.topic("sensor_gps")["time_utc_usec"]
+    assert _system_time_now(gcs).time_unix_usec == 0
+    gcs.send(mav.MAVLink_system_time_message(PX4_EPOCH_US - 1, 0))
+    gcs.step(0.02)
+    assert _system_time_now(gcs).time_unix_usec == 0
+    utc_us = 1_700_000_000_000_000
+    gcs.send(mav.MAVLink_system_time_message(utc_us, 0))
+    gcs.step(0.02)
+    m = _system_time_now(gcs)
+    assert 0 <= m.time_unix_usec - utc_us <= 100_000, m.time_unix_usec - utc_us
+    gcs.send(mav.MAVLink_system_time_message(utc_us + 3_600_000_000, 0))  # set already
+    gcs.step(0.02)
+    later = _system_time_now(gcs)
+    assert later.time_unix_usec - m.time_unix_usec == pytest.approx(
+        (later.time_boot_ms - m.time_boot_ms) * 1000, abs=1000)
+    assert fresh.udp_instance().systime.clock_sets == 1
+
+
+def test_system_time_streamed_at_1hz_from_gps_utc(fresh):
+    gcs = fresh.gcs
+    gcs.wait_for(lambda: (fresh.topic("sensor_gps") or {}).get("time_utc_usec"), 5.0)
+    mark = gcs.mark()
+    gcs.step(3.05)
+    msgs = gcs.messages("SYSTEM_TIME", mark)
+    assert 2 <= len(msgs) <= 4, len(msgs)   # PX4's default 1 Hz
+    boot = [m.time_boot_ms for m in msgs]
+    assert boot == sorted(boot) and 900 <= boot[1] - boot[0] <= 1100
+    gps = fresh.topic("sensor_gps")
+    gps_offset_us = gps["time_utc_usec"] - gps["timestamp"]
+    # the GPS's UTC, which sets the clock (as PX4's GPS driver does)
+    assert abs(msgs[-1].time_unix_usec - msgs[-1].time_boot_ms * 1000 - gps_offset_us) \
+        < 300_000
+    gcs.send(mav.MAVLink_system_time_message(gps["time_utc_usec"] + 10**12, 0))  # ignored
+    gcs.step(0.02)
+    m = _system_time_now(gcs)
+    assert abs(m.time_unix_usec - m.time_boot_ms * 1000 - gps_offset_us) < 300_000
