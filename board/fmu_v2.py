@@ -80,7 +80,8 @@ class FmuV2Board(Board):
                  sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
                  firmware: str = "rcS", exclude: tuple[str, ...] = (),
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
-                 host_clock: Any = None, uavcan_nodes: tuple[int, ...] = ()) -> None:
+                 host_clock: Any = None, uavcan_nodes: tuple[int, ...] = (),
+                 gps_utc_start_ns: int | None = None) -> None:
         if firmware not in ("rcS", "sensors", "none"):
             raise ValueError(f"firmware must be 'rcS', 'sensors' or 'none', got {firmware!r}")
         super().__init__(name, seed)
@@ -108,6 +109,9 @@ class FmuV2Board(Board):
         # GPS modules sold for the Pixhawk are usually re-saved at 38400 (a factory u-blox M8
         # starts at 9600, which costs the driver a full baud scan: pass gps_baud=9600).
         self._gps_baud = gps_baud
+        # UTC the GPS receiver reports at power on (None: the fixed epoch of reproducible runs;
+        # hil fly passes the host's UTC so that log files get distinct names).
+        self._gps_utc_start_ns = gps_utc_start_ns
         self._can: dict[str, Any] | None = None
         self.can_ctrl: dict[str, Any] = {}
         self.can_nodes: list[Any] = []
@@ -174,7 +178,10 @@ class FmuV2Board(Board):
             from board.uart import UartWire
 
             cls = model_class(u.external_model)
-            model = cls(k, env, self._rng(u.role), name=u.role, baud=self._gps_baud)
+            extra: dict[str, Any] = {}
+            if self._gps_utc_start_ns is not None:
+                extra["utc_start_ns"] = self._gps_utc_start_ns
+            model = cls(k, env, self._rng(u.role), name=u.role, baud=self._gps_baud, **extra)
             UartWire(self.uarts[u.name], model.uart)
             self.devices[u.role] = model
 

@@ -43,7 +43,8 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     from hil.fly import main
 
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
-                airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram)
+                airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram,
+                fixed_utc=args.fixed_utc)
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
@@ -183,6 +184,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not press the safety switch at boot")
     p.add_argument("--keep-fram", action="store_true",
                    help="keep the FRAM image of the last run (parameters, mission)")
+    p.add_argument("--fixed-utc", action="store_true",
+                   help="GPS time starts at the fixed epoch of hil run (2024-06-01 12:00 UTC) "
+                        "instead of now: same log names and content per seed")
     p.set_defaults(func=_cmd_fly)
 
     p = sub.add_parser("bench", help="measure the speed figures")

@@ -13,6 +13,10 @@ and the FMU console (nsh) is on a host pseudo-terminal and a TCP port, which ``h
 finds by itself. The safety switch is pressed for the user unless
 ``--keep-safety`` is given, since a ground station cannot press it (four seconds after power on,
 once the FMU reports ready to arm: the IO ignores the button before).
+
+The GPS reports the host's UTC at power on (read here, at the edge; the boards only get it as
+configuration), so each run's logs get distinct names (``YYYY-MM-DD/HH_MM_SS.ulg``) as on a real
+vehicle; ``--fixed-utc`` keeps the fixed epoch of ``hil run`` and the tests.
 """
 
 from __future__ import annotations
@@ -47,7 +51,7 @@ def honour_sigint() -> None:
 def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
          params: dict[str, Any] | None = None, quiet: bool = False,
-         keep_fram: bool = False) -> int:
+         keep_fram: bool = False, fixed_utc: bool = False) -> int:
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
@@ -55,6 +59,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
                        console=True, udp_bridge=True, telem_pty=True,
                        fresh_fram=not keep_fram,
+                       gps_utc_start_ns=None if fixed_utc else time.time_ns(),
                        params={"EKF2_MAG_DECL": 2.6, **(params or {})})
     orch, dev = build_system(cfg)
     say = (lambda text: None) if quiet else (lambda text: print(text, flush=True))

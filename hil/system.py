@@ -55,6 +55,10 @@ class SystemConfig:
     pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
     pin_cpus: bool = False            # the FMU on a CPU of its own (hil.cpu_plan)
     uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (node IDs) plugged into the FMU's CAN1
+    #: UTC (ns since 1970) the GPS reports at power on; None: the fixed epoch (2024-06-01 12:00,
+    #: peripherals.ublox.solution.START_UTC_NS) so logs are byte-identical per seed. hil fly
+    #: passes the host's UTC (read here at the edge) so that each run's logs get distinct names.
+    gps_utc_start_ns: int | None = None
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -74,6 +78,8 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         fmu_kwargs["host_clock"] = "perf_counter"
     if cfg.uavcan_nodes:
         fmu_kwargs["uavcan_nodes"] = tuple(cfg.uavcan_nodes)
+    if cfg.gps_utc_start_ns is not None:
+        fmu_kwargs["gps_utc_start_ns"] = int(cfg.gps_utc_start_ns)
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
     world = WorldPorts(seed=cfg.seed)

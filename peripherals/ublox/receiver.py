@@ -37,6 +37,7 @@ from peripherals.ublox.frame import UbxReader, ubx_frame
 from peripherals.ublox.solution import (
     GnssErrorParams,
     GnssFaults,
+    START_UTC_NS,
     Solution,
     SolutionModel,
 )
@@ -65,7 +66,7 @@ class UbloxM8:
     def __init__(self, kernel: Kernel, env: Environment, rng: np.random.Generator,
                  name: str = "gps", uart: Uart | None = None, *, baud: int = 9600,
                  ttff_s: float | None = None, params: GnssErrorParams | None = None,
-                 tx_buffer_bytes: int = 4096) -> None:
+                 tx_buffer_bytes: int = 4096, utc_start_ns: int = START_UTC_NS) -> None:
         self.kernel = kernel
         self.env = env
         self.name = name
@@ -76,7 +77,7 @@ class UbloxM8:
         self.uart = uart if uart is not None else Uart(kernel, name, UartConfig(baud))
         self.uart.config = UartConfig(baud)
         self.config = ConfigStore(baud)
-        self.model = SolutionModel(env, rng, params)
+        self.model = SolutionModel(env, rng, params, utc_start_ns)
         self.faults = FaultState()
         self.tx_buffer_bytes = tx_buffer_bytes
         self.reader = UbxReader()

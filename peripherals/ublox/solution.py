@@ -30,7 +30,8 @@ __all__ = [
 
 NS_PER_MS = 1_000_000
 NS_PER_S = 1_000_000_000
-#: UTC at power-on (2024-06-01 12:00:00 UTC): fixed so that runs are reproducible.
+#: UTC at power-on by default (2024-06-01 12:00:00 UTC): fixed so that runs are reproducible.
+#: ``hil fly`` passes the host's UTC instead (``utc_start_ns``), read at the edge in hil/.
 START_UTC_NS = 1_717_243_200 * NS_PER_S
 #: GPS - UTC in seconds since 2017.
 LEAP_SECONDS = 18
@@ -129,8 +130,11 @@ class SolutionModel:
     """Turns the environment into a solution per navigation epoch (seeded, deterministic)."""
 
     def __init__(self, env: Environment, rng: np.random.Generator,
-                 params: GnssErrorParams | None = None) -> None:
+                 params: GnssErrorParams | None = None,
+                 utc_start_ns: int = START_UTC_NS) -> None:
         self.env = env
+        #: UTC (ns since 1970) at kernel time 0: configuration, never the host clock.
+        self.utc_start_ns = utc_start_ns
         self.rng = rng
         self.p = params or GnssErrorParams()
         self.faults = GnssFaults()
@@ -186,7 +190,7 @@ class SolutionModel:
             self._sky_since_ns = t_ns
         need_s = p.reacquire_s if self._had_fix else p.ttff_s
         fix = sky and t_ns - self._sky_since_ns >= int(need_s * NS_PER_S)
-        sol = Solution(t_ns=t_ns, utc_ns=START_UTC_NS + t_ns)
+        sol = Solution(t_ns=t_ns, utc_ns=self.utc_start_ns + t_ns)
         sol.time_valid = self._had_fix or fix
         num_sv = max(0, self.num_sv_target - jam // 40) if sky else int(rng.integers(0, 3))
         sol.jam_ind = jam if jam else int(rng.integers(1, 6))
