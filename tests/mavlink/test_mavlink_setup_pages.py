@@ -7,7 +7,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mav
 
 from firmware.modules.mavlink.systime import PX4_EPOCH_US
-from tests.mavlink.conftest import open_session
+from tests.mavlink.conftest import open_commander_session, open_session
 
 
 @pytest.fixture(scope="module")
@@ -67,3 +67,51 @@ def test_system_time_streamed_at_1hz_from_gps_utc(fresh):
     gcs.step(0.02)
     m = _system_time_now(gcs)
     assert abs(m.time_unix_usec - m.time_boot_ms * 1000 - gps_offset_us) < 300_000
+
+
+@pytest.fixture(scope="module")
+def commander(tmp_path_factory):
+    s = open_commander_session(tmp_path_factory.mktemp("setup_pages_commander"))
+    yield s
+    s.close()
+
+
+def _texts(gcs, mark):
+    return [m.text if isinstance(m.text, str) else m.text.decode("latin-1")
+            for m in gcs.messages("STATUSTEXT", mark)]
+
+
+def test_run_prearm_checks_reports_every_failure_again(commander):
+    """RUN_PREARM_CHECKS: ACCEPTED, and each failing check's STATUSTEXT again (they were
+    reported once at boot; the command forces the report), with SYS_STATUS and
+    vehicle_status saying the checks fail (no RC on this bench board)."""
+    gcs = commander.gcs
+    gcs.step(1.0)  # the boot-time reports are out
+    mark = gcs.mark()
+    gcs.step(1.0)
+    assert not [t for t in _texts(gcs, mark) if "Preflight Fail" in t]
+    mark = gcs.mark()
+    ack = gcs.command_long(mav.MAV_CMD_RUN_PREARM_CHECKS)
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    gcs.step(0.3)
+    fails = [t for t in _texts(gcs, mark) if "Preflight Fail" in t]
+    # STATUSTEXT carries "[commander] " and is chunked at 50 characters
+    assert "[commander] Preflight Fail: No manual control inpu" in fails, fails
+    assert "[commander] Preflight Fail: battery not connected" in fails, fails
+    assert len(fails) == len(set(fails))  # each once
+    assert not commander.topic("vehicle_status")["pre_flight_checks_pass"]
+    sys_status = gcs.wait_message("SYS_STATUS", since=mark)
+    assert sys_status.onboard_control_sensors_present & ~sys_status.onboard_control_sensors_health
+
+
+def test_run_prearm_checks_rejected_when_armed(commander):
+    gcs = commander.gcs
+    assert gcs.arm(force=True).result == mav.MAV_RESULT_ACCEPTED
+    try:
+        mark = gcs.mark()
+        ack = gcs.command_long(mav.MAV_CMD_RUN_PREARM_CHECKS)
+        assert ack.result == mav.MAV_RESULT_TEMPORARILY_REJECTED
+        gcs.step(0.2)
+        assert not [t for t in _texts(gcs, mark) if "Preflight Fail" in t]
+    finally:
+        assert gcs.disarm(force=True).result == mav.MAV_RESULT_ACCEPTED

@@ -30,7 +30,7 @@ CMD = {
     "NAV_RETURN_TO_LAUNCH": 20, "NAV_LAND": 21, "NAV_TAKEOFF": 22, "DO_SET_MODE": 176,
     "DO_SET_HOME": 179, "DO_FLIGHTTERMINATION": 185, "DO_REPOSITION": 192,
     "PREFLIGHT_REBOOT_SHUTDOWN": 246, "MISSION_START": 300, "COMPONENT_ARM_DISARM": 400,
-    "PREFLIGHT_CALIBRATION": 241, "PREFLIGHT_STORAGE": 245,
+    "PREFLIGHT_CALIBRATION": 241, "PREFLIGHT_STORAGE": 245, "RUN_PREARM_CHECKS": 401,
 }
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 RESULT = {ACCEPTED: "accepted", TEMPORARILY_REJECTED: "temporarily rejected", DENIED: "denied",
@@ -59,6 +59,7 @@ class CommandHandler:
     arming_state: int
     user_nav: int
     p: dict[str, Any]
+    _reported: set[str]
 
     # -- vehicle_command --------------------------------------------------------------------
 
@@ -109,7 +110,21 @@ class CommandHandler:
                 CMD["DO_FLIGHTTERMINATION"]: self._cmd_terminate,
                 CMD["PREFLIGHT_REBOOT_SHUTDOWN"]: self._cmd_reboot,
                 CMD["PREFLIGHT_CALIBRATION"]: self._cmd_calibration,
-                CMD["PREFLIGHT_STORAGE"]: self._cmd_storage}
+                CMD["PREFLIGHT_STORAGE"]: self._cmd_storage,
+                CMD["RUN_PREARM_CHECKS"]: self._cmd_prearm_checks}
+
+    def _cmd_prearm_checks(self, cmd: Any) -> int:
+        """MAV_CMD_RUN_PREARM_CHECKS (401), QGroundControl's "run checks". PX4's commander
+        runs its health and arming checks with forced reporting and answers ACCEPTED; the
+        result is reported as it is for every check run: each failing check's STATUSTEXT
+        ("Preflight Fail: ...", sent again even if reported before) and the SYS_STATUS and
+        vehicle_status bits. MAVLink's definition: TEMPORARILY_REJECTED when armed."""
+        if self.arming_state == 2:  # ARMED
+            self.last_reason = "pre-arm checks: vehicle armed"
+            return TEMPORARILY_REJECTED
+        self._reported = set()  # forced reporting: every failure again
+        self.run_checks(self.platform.time_us())  # type: ignore[attr-defined]
+        return ACCEPTED
 
     def _cmd_arm(self, cmd: Any) -> int:
         from firmware.modules.commander.commander import R_CMD_EXTERNAL, R_CMD_INTERNAL
