@@ -1,7 +1,7 @@
 """QGroundControl's set-up-page messages and commands (issue 21): SYSTEM_TIME,
 RUN_PREARM_CHECKS, motor and actuator test, against a booted FMU over its UDP link."""
 
-import time
+import math
 
 import pytest
 from pymavlink.dialects.v20 import common as mav
@@ -113,5 +113,90 @@ def test_run_prearm_checks_rejected_when_armed(commander):
         assert ack.result == mav.MAV_RESULT_TEMPORARILY_REJECTED
         gcs.step(0.2)
         assert not [t for t in _texts(gcs, mark) if "Preflight Fail" in t]
+    finally:
+        assert gcs.disarm(force=True).result == mav.MAV_RESULT_ACCEPTED
+
+
+# -- motor test: the FMU, the IO and the world's ESCs ------------------------------------------
+
+S, MS = 1_000_000_000, 1_000_000
+
+
+@pytest.fixture(scope="module")
+def vehicle(tmp_path_factory):
+    """FMU + IO + world (the ESCs on the IO's pins), safety pressed off: the bench on which
+    QGroundControl's Motors page spins a motor."""
+    from hil.system import SystemConfig, build_system
+
+    orch, dev = build_system(SystemConfig(seed=4, out_dir=str(tmp_path_factory.mktemp("mt")),
+                                          rc="sbus", gcs=True))
+    orch.start()
+    gcs = dev["gcs"]
+    gcs.attach(orch)
+    gcs.wait_heartbeat(timeout_s=10)
+    gcs.step(1.0)
+    dev["safety"].press(orch.t_ns + 100 * MS, hold_s=1.5)
+    gcs.wait_for(lambda: (orch.call("fmu", "topic", "px4io_status") or {})
+                 .get("status_safety_off"), timeout_s=5)
+    yield orch, dev
+    orch.close()
+
+
+def _pulses(dev):
+    return [e.pulse_us for e in dev["world"].world.escs[:4]]
+
+
+def test_motor_test_spins_one_motor_for_its_timeout(vehicle):
+    orch, dev = vehicle
+    gcs = dev["gcs"]
+    gcs.step(0.2)
+    idle = _pulses(dev)
+    assert all(p < 1000 for p in idle), idle  # disarmed PWM (900)
+    ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                           [2, mav.MOTOR_TEST_THROTTLE_PERCENT, 20, 1.0, 0, 0, 0])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    t0 = orch.t_ns
+    gcs.step(0.3)
+    during = _pulses(dev)
+    assert 1360 <= during[1] <= 1380, during  # the F450's PWM_MIN 1230 + 20 % of 1230..1950
+    assert all(p < 1000 for i, p in enumerate(during) if i != 1), during
+    io_pwm = orch.call("fmu", "topic", "px4io_status")["pwm"][:4]
+    assert 1360 <= io_pwm[1] <= 1380 and all(p < 1000 for i, p in enumerate(io_pwm) if i != 1)
+    gcs.step(0.5)
+    assert 1360 <= _pulses(dev)[1] <= 1380           # still spinning before the 1 s timeout
+    gcs.step(0.4)
+    assert orch.t_ns - t0 >= 1.1 * S
+    assert all(p < 1000 for p in _pulses(dev)), _pulses(dev)  # back to disarmed after it
+    assert not orch.call("fmu", "topic", "actuator_armed")["armed"]
+
+
+def test_actuator_test_spins_a_motor_and_nan_stops_it(vehicle):
+    orch, dev = vehicle
+    gcs = dev["gcs"]
+    ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [0.5, 3.0, 0, 0, 104, 0, 0])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    gcs.step(0.3)
+    p = _pulses(dev)
+    assert 1580 <= p[3] <= 1600 and all(x < 1000 for x in p[:3]), p
+    ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [math.nan, 0, 0, 0, 104, 0, 0])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    gcs.step(0.2)
+    assert all(x < 1000 for x in _pulses(dev)), _pulses(dev)
+    ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [0.5, 1.0, 0, 0, 201, 0, 0])  # a servo
+    assert ack.result == mav.MAV_RESULT_UNSUPPORTED
+
+
+def test_motor_test_denied_when_armed(vehicle):
+    orch, dev = vehicle
+    gcs = dev["gcs"]
+    assert gcs.arm(force=True).result == mav.MAV_RESULT_ACCEPTED
+    try:
+        ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                               [1, mav.MOTOR_TEST_THROTTLE_PERCENT, 50, 2.0, 0, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [0.5, 2.0, 0, 0, 101, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        gcs.step(0.3)
+        assert orch.call("fmu", "topic", "actuator_armed")["armed"]
     finally:
         assert gcs.disarm(force=True).result == mav.MAV_RESULT_ACCEPTED

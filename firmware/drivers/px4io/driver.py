@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Final
 from board.uart import Uart, UartConfig
 from firmware.drivers.px4io import config as cfg
 from firmware.drivers.px4io.link import IoLink, IoThread, Txn
+from firmware.drivers.px4io.motor_test import MotorTest
 from firmware.drivers.px4io.report import status_lines
 from firmware.platform.task import Poll, Sleep
 from firmware.platform.uorb import SubscriptionInterval
@@ -148,6 +149,7 @@ class Px4ioDriver:
         self.msg_status = orb.new("px4io_status")
         self.pc_controls = module.perf_alloc("interval", "controls")
         self.pc_poll = module.perf_alloc("interval", "poll")
+        self.motor_test = MotorTest(self)
 
     # -- life cycle and commands --------------------------------------------------------------
 
@@ -197,12 +199,19 @@ class Px4ioDriver:
         while not thread.should_exit:
             yield Poll(subs[:1], max(0, next_poll - self._now()))
             for group, sub in enumerate(subs):
-                if sub.updated():
+                if not sub.updated():
+                    continue
+                if self.motor_test.active():
+                    sub.update()  # taken, not sent: CONTROLS would clear the test's RAW_PWM
+                else:
                     yield from self._send_controls(group, sub)
             now = self._now()
             if now >= next_poll:
                 next_poll = next_poll + POLL_INTERVAL_US if now - next_poll < \
                     POLL_INTERVAL_US else now + POLL_INTERVAL_US
+                armed = self.sub_armed.node.last
+                self.motor_test.poll(now, armed is not None and bool(armed.armed))
+                yield from self.motor_test.write(now)
                 yield from self._poll_io()
             if now >= next_orb:
                 next_orb = now + ORB_CHECK_INTERVAL_US

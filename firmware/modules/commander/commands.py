@@ -31,6 +31,7 @@ CMD = {
     "DO_SET_HOME": 179, "DO_FLIGHTTERMINATION": 185, "DO_REPOSITION": 192,
     "PREFLIGHT_REBOOT_SHUTDOWN": 246, "MISSION_START": 300, "COMPONENT_ARM_DISARM": 400,
     "PREFLIGHT_CALIBRATION": 241, "PREFLIGHT_STORAGE": 245, "RUN_PREARM_CHECKS": 401,
+    "DO_MOTOR_TEST": 209, "ACTUATOR_TEST": 310,
 }
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 RESULT = {ACCEPTED: "accepted", TEMPORARILY_REJECTED: "temporarily rejected", DENIED: "denied",
@@ -111,7 +112,77 @@ class CommandHandler:
                 CMD["PREFLIGHT_REBOOT_SHUTDOWN"]: self._cmd_reboot,
                 CMD["PREFLIGHT_CALIBRATION"]: self._cmd_calibration,
                 CMD["PREFLIGHT_STORAGE"]: self._cmd_storage,
-                CMD["RUN_PREARM_CHECKS"]: self._cmd_prearm_checks}
+                CMD["RUN_PREARM_CHECKS"]: self._cmd_prearm_checks,
+                CMD["DO_MOTOR_TEST"]: self._cmd_motor_test,
+                CMD["ACTUATOR_TEST"]: self._cmd_actuator_test}
+
+    # -- motor and actuator test (QGroundControl's Motors page) -------------------------------
+
+    def _motor_test_refused(self) -> str:
+        """Why a motor test may not run now ('' if it may): PX4's commander denies it when
+        armed or while the safety switch is on."""
+        from firmware.modules.commander.params import CBRK_IO_SAFETY_KEY
+        if self.arming_state == 2:  # ARMED
+            return "motor test: not while armed"
+        io = self.data.io.node.last  # type: ignore[attr-defined]
+        if io is not None and not io.status_safety_off and \
+                self.p["CBRK_IO_SAFETY"] != CBRK_IO_SAFETY_KEY:
+            return "motor test: safety switch not off"
+        return ""
+
+    def _publish_test_motor(self, motor: int, value: float, timeout_s: float) -> None:
+        """``test_motor`` for the output driver (px4io); timeout in whole ms, at least 1."""
+        timeout_ms = max(1, round(timeout_s * 1000)) if math.isfinite(timeout_s) else 1
+        msg = self.platform.orb.new("test_motor")  # type: ignore[attr-defined]
+        msg.timestamp = self.platform.time_us()  # type: ignore[attr-defined]
+        msg.action = 0 if value != value else 1  # NaN: stop
+        msg.motor_number = motor
+        msg.value = 0.0 if value != value else min(1.0, max(0.0, value))
+        msg.timeout_ms = min(timeout_ms, 3000)
+        pub = getattr(self, "_pub_test_motor", None)
+        if pub is None:
+            pub = self._pub_test_motor = self.advertise("test_motor")  # type: ignore
+        pub.publish(msg)
+
+    def _cmd_motor_test(self, cmd: Any) -> int:
+        """MAV_CMD_DO_MOTOR_TEST (209) as PX4's commander: param1 the motor (1-based), param2
+        the throttle type (only MOTOR_TEST_THROTTLE_PERCENT, 0, else UNSUPPORTED), param3 the
+        throttle in %, param4 the timeout in s (MAVLink's at most 3 s). DENIED when armed or
+        with the safety on."""
+        why = self._motor_test_refused()
+        if why:
+            self.last_reason = why
+            self.warn(why)  # type: ignore[attr-defined]
+            return DENIED
+        motor = _param_int(cmd.param1, 0) - 1
+        if _param_int(cmd.param2, -1) != 0:
+            self.last_reason = "motor test: only a throttle in percent is supported"
+            return UNSUPPORTED
+        if not 0 <= motor < 8 or not math.isfinite(cmd.param3):
+            self.last_reason = f"motor test: no motor {cmd.param1} or no throttle {cmd.param3}"
+            return DENIED
+        self._publish_test_motor(motor, float(cmd.param3) / 100.0, float(cmd.param4))
+        return ACCEPTED
+
+    def _cmd_actuator_test(self, cmd: Any) -> int:
+        """MAV_CMD_ACTUATOR_TEST (310): param1 the value -1..1 (NaN: off), param2 the timeout
+        in s (0..3), param5 the output function; motors (MOTOR1.., 101..) only, a motor's value
+        taken as 0..1 of its range (below 0: its minimum). DENIED as DO_MOTOR_TEST."""
+        why = self._motor_test_refused()
+        if why:
+            self.last_reason = why
+            self.warn(why)  # type: ignore[attr-defined]
+            return DENIED
+        function = _param_int(cmd.param5, 0)
+        if not 101 <= function <= 108:
+            self.last_reason = f"actuator test: output function {cmd.param5} not on this vehicle"
+            return UNSUPPORTED
+        value = float(cmd.param1)
+        if value in (float("inf"), float("-inf")):
+            self.last_reason = "actuator test: value out of range"
+            return DENIED
+        self._publish_test_motor(function - 101, value, float(cmd.param2))
+        return ACCEPTED
 
     def _cmd_prearm_checks(self, cmd: Any) -> int:
         """MAV_CMD_RUN_PREARM_CHECKS (401), QGroundControl's "run checks". PX4's commander
