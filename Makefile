@@ -34,7 +34,7 @@ test: $(STAMP)
 
 # The long fuzz run: every fuzz target (tests/fuzzing.py) with FUZZ_SCALE times the budget it
 # has in `make test`, in one process so that hypothesis prints per target how many inputs it
-# tried and how long that took.
+# tried and how long that took (about fifty minutes at the default scale).
 FUZZ_SCALE ?= 50
 fuzz: $(STAMP)
 	HIL_FUZZ_SCALE=$(FUZZ_SCALE) $(PY) -m pytest -q -m fuzz -p no:cacheprovider --hypothesis-show-statistics

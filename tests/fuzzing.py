@@ -5,7 +5,7 @@ protocol, MAVLink, BSON and the FRAM parameter store, the shell, the scenario lo
 is decorated with ``@fuzz(examples)``. That marks it ``fuzz`` and gives hypothesis a budget:
 
 - in ``make test`` each target tries ``examples`` inputs, so that all of them together take
-  about a minute of CPU; the inputs are derandomized (the same every run), so a failure in CI
+  under a minute of CPU (42 s for 45 targets on 2026-11-26); the inputs are derandomized (the same every run), so a failure in CI
   is the failure you get at your desk;
 - ``make fuzz`` (the long run, ``HIL_FUZZ_SCALE`` set) multiplies every budget by that scale,
   draws fresh random inputs (hypothesis keeps failures in ``.hypothesis/`` and tries them first
