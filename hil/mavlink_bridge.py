@@ -38,6 +38,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from pymavlink.dialects.v20 import common as mavlink2
+
 from board.wiring import WORLD, Wire
 
 __all__ = ["DEFAULT_ENDPOINTS", "HeartbeatKeepalive", "MavlinkUdpBridge", "UdpEndpoint",
@@ -53,39 +55,20 @@ KEEPALIVE_EVERY_S = 1.0
 #: virtual time without a HEARTBEAT after which the vehicle itself counts as silent: no re-sends
 VEHICLE_SILENT_NS = 2_500_000_000
 
-_HEARTBEAT_MSGID = 0
-_V1_MAGIC = 0xFE
-_V2_MAGIC = 0xFD
-_V2_SIGNED = 0x01  # incompat flag: a 13-byte signature follows the checksum
-
 
 def heartbeat_frame(data: bytes) -> bytes | None:
     """The last whole HEARTBEAT frame (MAVLink v1 or v2) in a datagram, or None.
 
-    A datagram may carry several frames (PX4's UDP link packs them); parsing stops at the first
-    byte that does not start a frame or at a frame cut short, so any bytes give an answer.
+    A datagram may carry several frames (PX4's UDP link packs them). pymavlink's own parser
+    reads them (checksums included, garbage skipped), a fresh one per datagram so that no
+    state leaks between datagrams; a frame cut short at the end is not a frame.
     """
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True                   # bad bytes are skipped, never raised
     found: bytes | None = None
-    i, n = 0, len(data)
-    while i + 2 <= n:
-        magic, length = data[i], data[i + 1]
-        if magic == _V2_MAGIC:
-            if i + 10 > n:
-                break
-            size = 10 + length + 2 + (13 if data[i + 2] & _V2_SIGNED else 0)
-            msgid = data[i + 7] | data[i + 8] << 8 | data[i + 9] << 16
-        elif magic == _V1_MAGIC:
-            if i + 6 > n:
-                break
-            size = 6 + length + 2
-            msgid = data[i + 5]
-        else:
-            break
-        if i + size > n:
-            break
-        if msgid == _HEARTBEAT_MSGID:
-            found = bytes(data[i:i + size])
-        i += size
+    for msg in parser.parse_buffer(data) or ():
+        if msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_HEARTBEAT:
+            found = bytes(msg.get_msgbuf())
     return found
 
 

@@ -107,7 +107,7 @@ from tests.fuzzing import fuzz  # noqa: E402
 @given(st.binary(max_size=300), st.binary(max_size=40))
 def test_heartbeat_frame_answers_any_bytes(data, prefix):
     """Any datagram gives None or a HEARTBEAT frame cut from it; a real HEARTBEAT first in the
-    datagram is never lost to whatever bytes follow it (they end the scan or parse as frames)."""
+    datagram is never lost to whatever bytes follow it (pymavlink's parser skips them)."""
     got = heartbeat_frame(prefix + data)
     assert got is None or (got[0] in (0xFD, 0xFE) and got in prefix + data)
     hb = _heartbeat(_mav())
