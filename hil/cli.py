@@ -141,6 +141,13 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     return main(args)
 
 
+def _cmd_hostdrv(args: argparse.Namespace) -> int:
+    from hil.hostdrv import main
+
+    return main(args.driver, i2c=args.i2c, spi=args.spi, emulated=args.emulated,
+                duration_s=args.duration, print_hz=args.print_hz, seed=args.seed)
+
+
 def _cmd_native(args: argparse.Namespace) -> int:
     from hil import native
 
@@ -249,6 +256,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="build only if the tier is missing or older than the sources")
     p.add_argument("--jobs", type=int, default=None, help="C compiler jobs (default: CPUs)")
     p.set_defaults(func=_cmd_native)
+
+    p = sub.add_parser("hostdrv", help="run one of the FMU's drivers on a host I2C/SPI bus "
+                                       "(smbus2/spidev) in real time, printing like listener")
+    p.add_argument("driver", choices=("hmc5883", "ms5611"))
+    p.add_argument("--i2c", type=int, default=None, metavar="N", help="I2C bus /dev/i2c-N")
+    p.add_argument("--spi", default=None, metavar="BUS.CS", help="SPI device /dev/spidevBUS.CS")
+    p.add_argument("--emulated", action="store_true",
+                   help="the emulated chip behind an smbus2-API object (no hardware needed)")
+    p.add_argument("--duration", type=float, default=None, help="seconds (default: until ^C)")
+    p.add_argument("--print-hz", type=float, default=1.0,
+                   help="print the latest message this often (0: summary only)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the emulated chip's noise")
+    p.set_defaults(func=_cmd_hostdrv)
 
     p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
     p.add_argument("--out", default=None, help="write to this file instead of stdout")

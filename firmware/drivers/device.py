@@ -3,11 +3,27 @@
 A driver is a work item with a state machine (reset -> wait -> configure -> read) whose steps
 end by scheduling the next run, as in PX4's modern drivers. ``start()`` probes the device over
 its bus; a wrong or missing ID makes the driver refuse to start and say why in dmesg.
+
+Drivers reach their chip through a *bus handle*, a small typed protocol rather than a class of
+the emulated board, so the same driver code runs on a real Linux bus (``hil/hostbus.py`` adapts
+an ``smbus2.SMBus`` or a ``spidev.SpiDev`` to these protocols; ``hil hostdrv`` runs a driver on
+one):
+
+* :class:`I2cBusHandle`: one combined transaction per call, ``transfer(addr, write, read_len)``
+  (write phase, repeated START, read phase: one Linux ``I2C_RDWR``), returning ``(0, data)`` or
+  ``(-errno, b"")``; a NAK or any bus error is a result, never an exception, so a driver counts
+  it. ``board.i2c.I2cBus`` is one.
+* :class:`I2cDeviceHandle`: the same with the address bound (``bus.device(addr)``), which is what
+  a driver holds. ``board.i2c.I2cHandle`` is one, :class:`I2cAddress` binds any bus handle.
+* :class:`SpiDeviceHandle`: one chip select, full duplex ``transfer(tx) -> rx`` (CS held for the
+  call, as spidev's ``xfer2``), with the ``mode`` and ``max_speed_hz`` spidev has.
+  ``board.spi.SpiHandle`` is one.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 from mypy_extensions import mypyc_attr
 
@@ -15,10 +31,59 @@ from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT, PC_ELAPSED, PC_INTERVAL
 from firmware.platform.workqueue import WorkItem
 
-__all__ = ["DeviceId", "BUS_TYPE_I2C", "BUS_TYPE_SPI", "BUS_TYPE_SERIAL", "SensorDriver"]
+__all__ = ["DeviceId", "BUS_TYPE_I2C", "BUS_TYPE_SPI", "BUS_TYPE_SERIAL", "I2cAddress",
+           "I2cBusHandle", "I2cDeviceHandle", "SensorDriver", "SpiDeviceHandle"]
 
 BUS_TYPE_UNKNOWN, BUS_TYPE_I2C, BUS_TYPE_SPI, BUS_TYPE_UAVCAN, BUS_TYPE_SIMULATION, \
     BUS_TYPE_SERIAL, BUS_TYPE_MAVLINK = range(7)
+
+
+class I2cDeviceHandle(Protocol):
+    """One I2C device as a driver sees it: its 7-bit address and combined transactions."""
+
+    addr: int
+
+    def transfer(self, write: bytes = b"", read_len: int = 0) -> tuple[int, bytes]:
+        """Write ``write``, repeated START, read ``read_len`` bytes; ``(0, data)`` or
+        ``(-errno, b"")`` (a NAK, a bus error): never raises for the bus's sake."""
+        ...
+
+
+class I2cBusHandle(Protocol):
+    """An I2C controller: the emulated one (``board.i2c.I2cBus``) or a host adapter."""
+
+    def transfer(self, addr: int, write: bytes = b"", read_len: int = 0) -> tuple[int, bytes]:
+        """:meth:`I2cDeviceHandle.transfer` at ``addr``."""
+        ...
+
+
+class SpiDeviceHandle(Protocol):
+    """One SPI chip select: spidev's ``mode`` and ``max_speed_hz``, and a full-duplex
+    transfer that holds CS for the whole call and returns as many bytes as it sent."""
+
+    mode: int
+    max_speed_hz: int
+
+    def transfer(self, tx: bytes) -> bytes:
+        ...
+
+
+class I2cAddress:
+    """Any :class:`I2cBusHandle` with one address bound: a driver's :class:`I2cDeviceHandle`."""
+
+    __slots__ = ("addr", "bus")
+
+    def __init__(self, bus: I2cBusHandle, addr: int) -> None:
+        if type(addr) is not int or not 0 <= addr <= 0x7F:
+            raise ValueError(f"I2C address must be a 7-bit int, got {addr!r}")
+        self.bus = bus
+        self.addr = addr
+
+    def transfer(self, write: bytes = b"", read_len: int = 0) -> tuple[int, bytes]:
+        return self.bus.transfer(self.addr, write, read_len)
+
+    def __repr__(self) -> str:
+        return f"<I2cAddress {self.bus!r}@0x{self.addr:02x}>"
 
 
 @dataclass(frozen=True)

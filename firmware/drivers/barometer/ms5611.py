@@ -16,6 +16,10 @@ What the driver notices (each one counted and added to ``error_count``):
   results carry hundreds of counts of noise);
 * a pressure step larger than ``STEP_LIMIT_PA`` between two results (a bias step or a glitch).
 
+The driver holds an ``SpiDeviceHandle`` (firmware/drivers/device.py): the emulated SPI1's chip
+select, or a Linux ``spidev`` through ``hil/hostbus.py``; a failed host transfer reads as an idle
+(all 0xFF) MISO, i.e. a bad transfer below.
+
 The first two make the driver re-issue RESET, as PX4 does on any collection error, and wait
 3 ms (PX4: 2.8 ms; the chip counts its 2.8 ms from the end of the command byte) before the next
 conversion.
@@ -25,8 +29,7 @@ from __future__ import annotations
 
 from typing import Any, Final
 
-from board.spi import SpiHandle
-from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
+from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver, SpiDeviceHandle
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
 
@@ -94,7 +97,7 @@ def compensate(c: list[int], d1: int, d2: int) -> tuple[int, int]:
 class Ms5611Driver(SensorDriver):
     """Reads an MS5611 on ``spi`` (SPI mode 3, 20 MHz requested) and publishes ``sensor_baro``."""
 
-    def __init__(self, platform: Platform, spi: SpiHandle, name: str = "ms5611", bus: int = 1,
+    def __init__(self, platform: Platform, spi: SpiDeviceHandle, name: str = "ms5611", bus: int = 1,
                  osr: int = 1024, interval_us: int = 10_000) -> None:
         if osr not in _OSR_BITS:
             raise ValueError(f"{name}: OSR must be one of {sorted(_OSR_BITS)}, got {osr!r}")

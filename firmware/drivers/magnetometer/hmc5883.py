@@ -5,8 +5,9 @@ Flow (reference sheet 5.6): probe reads the three ID bytes one at a time (retryi
 reads both back; then each run reads the 6 data bytes of the measurement started on the previous
 run, starts the next single measurement (MR = 0x01) and sleeps 6666 us: 150 Hz.
 
-Every bus call goes through ``I2cHandle.transfer`` so that a NAK is a result, not an exception:
-it is counted as a bad transfer and added to ``error_count``, and the driver keeps trying. An
+Every bus call goes through the handle's ``transfer`` (``I2cDeviceHandle``: the emulated I2C1,
+or a Linux bus through ``hil/hostbus.py``) so that a NAK or any other bus error is a result, not
+an exception: it is counted as a bad transfer and added to ``error_count``, and the driver keeps trying. An
 axis reading the overflow value (-4096, or anything beyond +-2048 as PX4 checks) is counted and
 the sample is not published. CRA is re-checked every 128 samples and CRB every 256; a mismatch
 is a bad register and the driver rewrites it. A gain change takes effect from the measurement
@@ -23,8 +24,7 @@ from __future__ import annotations
 
 from typing import Any, Final
 
-from board.i2c import I2cHandle
-from firmware.drivers.device import BUS_TYPE_I2C, DeviceId, SensorDriver
+from firmware.drivers.device import BUS_TYPE_I2C, DeviceId, I2cDeviceHandle, SensorDriver
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
 
@@ -60,7 +60,7 @@ NAK_WARN: Final = 10
 class Hmc5883Driver(SensorDriver):
     """Reads an HMC5883L at 0x1E through ``i2c`` and publishes ``sensor_mag``."""
 
-    def __init__(self, platform: Platform, i2c: I2cHandle, name: str = "hmc5883", bus: int = 1,
+    def __init__(self, platform: Platform, i2c: I2cDeviceHandle, name: str = "hmc5883", bus: int = 1,
                  external: bool = True, self_test: bool = False) -> None:
         super().__init__(platform, name, f"wq:I2C{bus}")
         self.i2c = i2c
