@@ -81,7 +81,8 @@ class FmuV2Board(Board):
                  firmware: str = "rcS", exclude: tuple[str, ...] = (),
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
                  host_clock: Any = None, uavcan_nodes: tuple[int, ...] = (),
-                 gps_utc_start_ns: int | None = None) -> None:
+                 gps_utc_start_ns: int | None = None,
+                 host_ports: tuple[str, ...] = ()) -> None:
         if firmware not in ("rcS", "sensors", "none"):
             raise ValueError(f"firmware must be 'rcS', 'sensors' or 'none', got {firmware!r}")
         super().__init__(name, seed)
@@ -115,11 +116,14 @@ class FmuV2Board(Board):
         self._can: dict[str, Any] | None = None
         self.can_ctrl: dict[str, Any] = {}
         self.can_nodes: list[Any] = []
+        self.can_host: dict[str, Any] = {}
         self._uavcan_nodes = tuple(uavcan_nodes)
         self._build_devices()
         if self._uavcan_nodes:
             self._build_can()
         self._expose_ports()
+        for connector in host_ports:
+            self._expose_host_port(connector)
         self._power_v = 0.0
         self._power_a = 0.0
         for ch in spec.adc:
@@ -228,6 +232,26 @@ class FmuV2Board(Board):
         self.udp_out = self.expose_output("udp_out")
         self.udp_handlers: dict[int, Any] = {}
         self.expose_input("udp_in", self._on_udp)
+
+    def _expose_host_port(self, connector: str) -> None:
+        """Let the host reach a connector that is normally closed inside the board (``hil fly
+        --can``/``--uart``, the python-can plug-in): a CAN bus (``CAN1``) gets an adapter node
+        (:mod:`board.can_port`, port ``can1``); a UART with no port of its own (``gps``, its
+        module excluded with ``exclude=("ublox_m8",)``) is exposed under its role."""
+        if connector in {c.name for c in self.spec.can}:
+            from board.can_port import CanHostPort
+
+            self.can_host[connector] = CanHostPort(self, self.can[connector], connector.lower())
+            return
+        for u in self.spec.uarts:
+            if u.role == connector and u.port is None:
+                if u.external_model is not None and u.external_model not in self._excluded:
+                    raise ValueError(f"board {self.name}: {connector} has its {u.external_model} "
+                                     f"plugged in; exclude it to expose the connector")
+                self.expose_uart(connector, self.uarts[u.name])
+                return
+        raise ValueError(f"board {self.name}: no connector {connector!r} to expose (CAN buses "
+                         f"or UARTs without a port)")
 
     def _on_udp(self, t_ns: int, payload: Any) -> None:
         fmu_port, remote_port, data = payload
@@ -496,7 +520,8 @@ class FmuV2Board(Board):
                 "tx_frames": c.tx_frames, "rx_frames": c.rx_frames, "frames": b.frames,
                 "error_frames": b.error_frames, "wire_fault": b.wire_fault,
                 "nodes": {n.node_id: n.stats() for n in self.can_nodes
-                          if n.ctrl.bus is b}}
+                          if n.ctrl.bus is b},
+                "host": self.can_host[bus].stats() if bus in self.can_host else None}
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)

@@ -59,6 +59,16 @@ class SystemConfig:
     #: peripherals.ublox.solution.START_UTC_NS) so logs are byte-identical per seed. hil fly
     #: passes the host's UTC (read here at the edge) so that each run's logs get distinct names.
     gps_utc_start_ns: int | None = None
+    #: CAN buses of the FMU reachable from the host (python-can plug-in ``hil``, docs/attaching.md):
+    #: each gets an adapter node on the bus (off the bus until a tool attaches) and a
+    #: hil.can_interface_host.CanHost, devices["can1"]; ``can_tcp`` adds its TCP endpoint.
+    can_hosts: tuple[str, ...] = ()
+    can_tcp: bool = False
+    #: CAN bus -> python-can bus spec bound to it (``hil fly --can CAN1=virtual:chan0``)
+    can_bind: dict[str, str] = field(default_factory=dict)
+    #: emulated UART (telem1, telem2, gps, rc) -> pyserial URL or device bound to it
+    #: (``hil fly --uart gps=socket://host:port``; hil.bindings_uart)
+    uart_bind: dict[str, str] = field(default_factory=dict)
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -80,6 +90,9 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         fmu_kwargs["uavcan_nodes"] = tuple(cfg.uavcan_nodes)
     if cfg.gps_utc_start_ns is not None:
         fmu_kwargs["gps_utc_start_ns"] = int(cfg.gps_utc_start_ns)
+    can_hosts = tuple(dict.fromkeys((*cfg.can_hosts, *cfg.can_bind)))
+    if can_hosts:
+        fmu_kwargs["host_ports"] = can_hosts
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
     world = WorldPorts(seed=cfg.seed)
@@ -111,6 +124,8 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         from hil.console import SerialBridge
 
         for port in ("telem1", "telem2"):
+            if port in cfg.uart_bind:
+                continue  # bound to a device or URL instead (hil.bindings_uart)
             # A radio modem on the connector: its serial side is a host pty (57600 8N1, the
             # FMU's default for TELEM links), e.g. mavproxy.py --master=/dev/pts/N.
             tb = SerialBridge(port, baud=57_600, tcp_port=None)
@@ -134,6 +149,14 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
             hub.add(bridge_dev)
             devices["udp"] = bridge_dev
             wiring += udp_wires(bridge_dev.port)
+    if can_hosts:
+        from hil.bindings_can import add_can_hosts
+
+        wiring += add_can_hosts(cfg, hub, devices, can_hosts)
+    if cfg.uart_bind:
+        from hil.bindings_uart import add_uart_bindings
+
+        wiring = add_uart_bindings(cfg, hub, devices, wiring, boards)
     orch = Orchestrator(boards, wiring, world=hub, quantum_ns=cfg.quantum_ns, mode=cfg.mode,
                         speed=cfg.speed, trace_path=cfg.trace_path, pipeline=cfg.pipeline,
                         isolate="fmu" if cfg.pin_cpus and cfg.mode == "process" else None)
