@@ -14,8 +14,11 @@ Ports that leave the board (see board/wiring.py):
 * ``io_link`` (USART6), ``telem1``, ``telem2``, ``console``: UARTs.
 * CAN1 (PD0 RX / PD1 TX through the transceiver to the CAN connector) and CAN2, each a
   :class:`~board.can.CanBus` at 1 Mbit/s with the FMU's bxCAN controller in sleep mode until
-  the uavcan driver enables it. ``uavcan_nodes=(125,)`` plugs UAVCAN nodes with those IDs into
-  CAN1 (:class:`peripherals.uavcan_node.UavcanNode`: NodeStatus at 1 Hz). The CAN hardware is
+  the uavcan driver enables it. ``uavcan_nodes`` plugs DroneCAN nodes into CAN1: an int is a
+  plain node with that ID (:class:`peripherals.uavcan_node.UavcanNode`: NodeStatus at 1 Hz,
+  GetNodeInfo), ``"gnss"`` / ``"mag"`` a GNSS receiver (Fix2 at 5 Hz) / compass node
+  (:mod:`peripherals.dronecan`) fed by the world's truth, with ``@N`` a configured node ID
+  (``"gnss@0"``, the default, asks the FMU's allocator for one). The CAN hardware is
   built on first use (python-can takes ~0.2 s to import): a board whose firmware never touches
   CAN and has no node on it pays nothing, at start or per quantum.
 * ``udp_in`` / ``udp_out``: the FMU's network interface as PX4 SITL has one, carrying whole
@@ -80,7 +83,7 @@ class FmuV2Board(Board):
                  sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
                  firmware: str = "rcS", exclude: tuple[str, ...] = (),
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
-                 host_clock: Any = None, uavcan_nodes: tuple[int, ...] = (),
+                 host_clock: Any = None, uavcan_nodes: tuple[int | str, ...] = (),
                  gps_utc_start_ns: int | None = None,
                  host_ports: tuple[str, ...] = ()) -> None:
         if firmware not in ("rcS", "sensors", "none"):
@@ -210,12 +213,31 @@ class FmuV2Board(Board):
             # automatic bus-off management (ABOM) as libuavcan's STM32 driver sets it
             self.can_ctrl[c.name] = CanController(bus, f"{self.name}.{c.name}", enabled=False,
                                                   auto_recovery=True)
-        if self._uavcan_nodes:
+        for spec in self._uavcan_nodes:
+            self.can_nodes.append(self._can_node(spec))
+
+    def _can_node(self, spec: int | str) -> Any:
+        """One DroneCAN node on CAN1 from its ``uavcan_nodes`` entry (see the module doc)."""
+        bus = self._can["CAN1"]  # type: ignore[index]
+        if isinstance(spec, int):
             from peripherals.uavcan_node import UavcanNode
 
-            for node_id in self._uavcan_nodes:
-                self.can_nodes.append(UavcanNode(self.kernel, self._can["CAN1"], node_id,
-                                                 name=f"uavcan_node{node_id}"))
+            return UavcanNode(self.kernel, bus, spec, name=f"uavcan_node{spec}", seed=self.seed)
+        kind, _, nid = str(spec).partition("@")
+        if kind not in ("gnss", "mag") or (nid and not nid.isdigit()):
+            raise ValueError(f"uavcan_nodes: {spec!r} is not a node ID, 'gnss[@id]' or "
+                             f"'mag[@id]'")
+        node_id = int(nid or 0)
+        name = f"can_{kind}{nid and '@' + nid}"
+        if kind == "gnss":
+            from peripherals.dronecan.gnss import GnssNode
+
+            return GnssNode(self.kernel, bus, self.env, self._rng(name), node_id, name=name,
+                            seed=self.seed)
+        from peripherals.dronecan.mag import MagNode
+
+        return MagNode(self.kernel, bus, self.env, self._rng(name), node_id, name=name,
+                       seed=self.seed)
 
     def _expose_ports(self) -> None:
         for u in self.spec.uarts:
@@ -510,6 +532,15 @@ class FmuV2Board(Board):
         self._bus("can", bus).set_wire_fault(bool(short), float(bit_error_rate),
                                              seed=f"{self.seed}")
 
+    def ctl_can_node_silent(self, node: str, silent: bool = True) -> None:
+        """A DroneCAN node on CAN1 (by name, ``can_gnss``, or node ID as text) stops talking
+        (off the bus: no frames, no ACKs) or comes back: a hung node MCU or a cut stub."""
+        for n in self.can_nodes:
+            if node in (n.name, str(n.node_id)):
+                n.set_silent(bool(silent))
+                return
+        raise ValueError(f"no CAN node {node!r} (have {[n.name for n in self.can_nodes]})")
+
     def ctl_can_stats(self, bus: str) -> dict[str, Any]:
         """The FMU controller's error state and counters on ``bus``, the bus's, and every
         UAVCAN node plugged into it."""
@@ -519,7 +550,7 @@ class FmuV2Board(Board):
                 "bus_off_count": c.bus_off_count, "tx_errors": c.tx_errors,
                 "tx_frames": c.tx_frames, "rx_frames": c.rx_frames, "frames": b.frames,
                 "error_frames": b.error_frames, "wire_fault": b.wire_fault,
-                "nodes": {n.node_id: n.stats() for n in self.can_nodes
+                "nodes": {(n.node_id or n.name): n.stats() for n in self.can_nodes
                           if n.ctrl.bus is b},
                 "host": self.can_host[bus].stats() if bus in self.can_host else None}
 

@@ -1,5 +1,6 @@
-"""The FMU's UAVCAN node on CAN1: NodeStatus out at 1 Hz, other nodes' NodeStatus counted, the
-controller's error state reported (PX4's ``uavcan`` module, reduced to bus health).
+"""The FMU's DroneCAN node on CAN1 (PX4's ``uavcan`` module): NodeStatus, GetNodeInfo, node
+discovery and offline detection, the dynamic node-ID allocation server, CAN GNSS and compass
+onto ``sensor_gps`` / ``sensor_mag``, and the controller's error state.
 
 Started by the ROMFS rcS only when ``UAVCAN_ENABLE`` > 0 (PX4's default 0: no CAN traffic, no
 cost). At start the driver takes CAN1's bxCAN out of initialisation mode with automatic bus-off
@@ -7,27 +8,28 @@ management (ABOM, as libuavcan's STM32 driver sets it), so after a bus-off the h
 rejoins the bus by itself once it has seen 128 x 11 recessive bits.
 
 Interrupts, as the NuttX/libuavcan driver uses them: RX FIFO pending (frames copied to a
-software queue), TX request complete (frames sent), error status (ERRIE with BOFIE and EPVIE:
-bus-off and error-passive entries counted with their time). The node loop runs every 10 ms on
-``wq:uavcan``: it drains the queue, decodes ``uavcan.protocol.NodeStatus`` (data type 341) from
-other nodes, sends its own NodeStatus once a second (a frame still in its mailbox when the next
-is due passed its deadline: it is aborted and counted in ``tx_timeouts``), reads ESR (state,
-TEC, REC; BOFF clear after a bus-off counts a recovery) and publishes
-``can_interface_status`` at 10 Hz and at once on a state change. A node is online while its
-NodeStatus arrived within the last 3 s (UAVCAN's offline timeout).
+software queue), TX request complete (the transmit queue loads the next frame), error status
+(ERRIE with BOFIE and EPVIE: bus-off and error-passive entries counted with their time). The
+node loop runs every 10 ms on ``wq:uavcan``: it hands the queued frames to the DroneCAN stack
+(:mod:`firmware.drivers.uavcan.stack`: transfers, services, the node table), expires transfers
+whose deadline passed (counted in ``tx_timeouts``: a NodeStatus still queued when the next is
+due), reads ESR (state, TEC, REC; BOFF clear after a bus-off counts a recovery) and publishes
+``can_interface_status`` at 10 Hz and at once on a state change.
+
+Encoding and decoding are the ``dronecan`` package's (through :mod:`firmware.lib.uavcan`);
+the stack is imported only when the driver starts.
 """
 
 from __future__ import annotations
 
-import struct
 from collections import deque
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import can
 
+from firmware.drivers.uavcan.params import PARAMS
 from firmware.platform.module import ModuleError, WorkItemModule
-from firmware.platform.params import ParamDef
 
 if TYPE_CHECKING:
     from firmware.system import System
@@ -37,49 +39,38 @@ __all__ = ["NODE_STATUS_DTID", "OFFLINE_TIMEOUT_US", "PARAMS", "UavcanModule",
 
 NODE_STATUS_DTID = 341
 OFFLINE_TIMEOUT_US = 3_000_000
-NODE_STATUS_PERIOD_US = 1_000_000
 PUBLISH_PERIOD_US = 100_000
-_PRIORITY = 16            # libuavcan's default transfer priority
 _STATES = {"error_active": 0, "error_passive": 1, "bus_off": 2}
-_G = "UAVCAN"
-
-PARAMS: tuple[ParamDef, ...] = (
-    ParamDef("UAVCAN_ENABLE", "INT32", 0, min=0, max=3, group=_G, reboot_required=True,
-             short="UAVCAN mode",
-             long="0: the uavcan driver is not started (no CAN traffic). Any other value starts "
-                  "it from the startup script on CAN1.",
-             values={0: "Disabled", 1: "Sensors Manual Config", 2: "Sensors Automatic Config",
-                     3: "Sensors and Actuators (ESCs) Automatic Config"}),
-    ParamDef("UAVCAN_NODE_ID", "INT32", 1, min=1, max=125, group=_G, reboot_required=True,
-             short="UAVCAN Node ID", long="Read once at startup."),
-)
 
 
 def node_status_frame(node_id: int, uptime_s: int, transfer_id: int, health: int = 0,
                       mode: int = 0) -> can.Message:
-    """A NodeStatus single-frame transfer: 29-bit ID (priority, data type, source node), 7
-    payload bytes (uptime, health/mode/sub-mode, vendor code; little-endian), tail byte."""
-    payload = struct.pack("<IBH", uptime_s & 0xFFFFFFFF, (health & 3) << 6 | (mode & 7) << 3, 0)
-    return can.Message(arbitration_id=(_PRIORITY << 24) | (NODE_STATUS_DTID << 8) | node_id,
-                       is_extended_id=True,
-                       data=payload + bytes((0xC0 | (transfer_id & 0x1F),)))
+    """A NodeStatus single-frame transfer from ``node_id`` (the ``dronecan`` package's
+    encoding)."""
+    from firmware.lib.uavcan.transfer import encode, types
+
+    st = types().uavcan.protocol.NodeStatus(uptime_sec=uptime_s & 0xFFFFFFFF, health=health & 3,
+                                            mode=mode & 7, sub_mode=0,
+                                            vendor_specific_status_code=0)
+    return encode(st, node_id, transfer_id)[0]
 
 
 def parse_node_status(msg: can.Message) -> tuple[int, int, int] | None:
     """(source node, uptime s, health) of a single-frame NodeStatus message, else None."""
-    aid = msg.arbitration_id
-    data = msg.data
-    if (msg.is_extended_id and (aid >> 8) & 0xFFFF == NODE_STATUS_DTID and not aid & 0x80
-            and len(data) == 8 and data[7] & 0xC0 == 0xC0):
-        return aid & 0x7F, int.from_bytes(data[0:4], "little"), data[4] >> 6
-    return None
+    from firmware.lib.uavcan.transfer import decode_single
+
+    tr = decode_single(msg)
+    if tr is None or tr.service or tr.data_type_id != NODE_STATUS_DTID or tr.source == 0:
+        return None
+    return tr.source, int(tr.payload.uptime_sec), int(tr.payload.health)
 
 
 class UavcanModule(WorkItemModule):
-    """``uavcan start``: the FMU's UAVCAN node on CAN1."""
+    """``uavcan start``: the FMU's DroneCAN node on CAN1."""
 
     NAME = "uavcan"
-    DESCRIPTION = "UAVCAN node on CAN1: NodeStatus, bus health (can_interface_status)"
+    DESCRIPTION = ("DroneCAN node on CAN1: NodeStatus, GetNodeInfo, node-ID allocation, CAN "
+                   "GNSS and compass, bus health (can_interface_status)")
     WQ = "wq:uavcan"
     INTERVAL_US = 10_000
     CPU_COST_NS = 20_000
@@ -88,14 +79,28 @@ class UavcanModule(WorkItemModule):
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
         self.ctrl: Any = None
+        self.stack: Any = None
 
     def _start(self) -> None:
-        hw = getattr(self.system, "hw", None)
+        hw: Any = getattr(self.system, "hw", None)
         buses = getattr(hw, "can", None) if hw is not None else None
         if not buses or "CAN1" not in buses:
             raise ModuleError("no CAN1 on this board")
+        bitrate = int(self.param("UAVCAN_BITRATE"))
+        wire = int(buses["CAN1"].bitrate)
+        if bitrate != wire:
+            raise ModuleError(f"UAVCAN_BITRATE {bitrate}: the emulated CAN1 and its nodes run "
+                              f"at {wire} bit/s only; the controller would see only errors")
+        from firmware.drivers.uavcan.stack import DronecanStack
+
         self.ctrl = ctrl = hw.can_ctrl["CAN1"]
         self.node_id = int(self.param("UAVCAN_NODE_ID"))
+        mode = int(self.param("UAVCAN_ENABLE"))
+        # the STM32's 96-bit unique device ID, padded: fixed per board here
+        uid = bytes(range(0x30, 0x3C)) + bytes(4)
+        self.stack = DronecanStack(self.platform, ctrl, self.node_id, dna=mode >= 2,
+                                   sub_gps=bool(self.param("UAVCAN_SUB_GPS")),
+                                   sub_mag=bool(self.param("UAVCAN_SUB_MAG")), unique_id=uid)
         self._rxq: deque[can.Message] = deque()
         self.bus_off_count = 0
         self.error_passive_count = 0
@@ -103,13 +108,7 @@ class UavcanModule(WorkItemModule):
         self.last_bus_off_us = 0
         self.frames_tx = 0
         self.frames_rx = 0
-        self.tx_timeouts = 0
-        self.node_status_rx = 0
-        self.nodes: dict[int, tuple[int, int, int]] = {}  # id -> (last us, uptime, health)
         self._in_bus_off = False
-        self._pending: can.Message | None = None
-        self._tid = 0
-        self._next_status_us = 0
         self._last_pub_us = -PUBLISH_PERIOD_US
         self._last_state = -1
         self._pub = self.advertise("can_interface_status")
@@ -118,7 +117,8 @@ class UavcanModule(WorkItemModule):
         ctrl.on_tx_complete(self._tx_isr)
         ctrl.on_error(self._err_isr)
         ctrl.enable()
-        self.info(f"node {self.node_id} on CAN1 at {ctrl.bus.bitrate // 1000} kbit/s")
+        self.info(f"node {self.node_id} on CAN1 at {ctrl.bus.bitrate // 1000} kbit/s"
+                  + (", node-ID allocation server" if mode >= 2 else ""))
 
     def _stop(self) -> None:
         ctrl = self.ctrl
@@ -137,10 +137,9 @@ class UavcanModule(WorkItemModule):
             self._rxq.append(m)
 
     def _tx_isr(self, t_ns: int, msg: can.Message, ok: bool) -> None:
-        if msg is self._pending:
-            self._pending = None
         if ok:
             self.frames_tx += 1
+        self.stack.txq.tx_done(msg, ok)
 
     def _err_isr(self, t_ns: int, state: str) -> None:
         if state == "bus_off":
@@ -154,26 +153,13 @@ class UavcanModule(WorkItemModule):
 
     def run(self) -> None:
         now = self.platform.time_us()
-        ctrl = self.ctrl
+        stack = self.stack
         q = self._rxq
         while q:
-            m = q.popleft()
             self.frames_rx += 1
-            st = parse_node_status(m)
-            if st is not None and st[0] != self.node_id:
-                self.nodes[st[0]] = (now, st[1], st[2])
-                self.node_status_rx += 1
-        if now >= self._next_status_us:
-            self._next_status_us = now + NODE_STATUS_PERIOD_US
-            if self._pending is not None:  # deadline passed without leaving the mailbox
-                ctrl.abort()
-                self._pending = None
-                self.tx_timeouts += 1
-            msg = node_status_frame(self.node_id, now // 1_000_000, self._tid)
-            self._tid = (self._tid + 1) & 0x1F
-            if ctrl.send(msg):
-                self._pending = msg
-        state = _STATES[ctrl.state]
+            stack.receive(q.popleft(), now)
+        stack.tick(now)
+        state = _STATES[self.ctrl.state]
         if self._in_bus_off and state != 2:
             self._in_bus_off = False
             self.recoveries += 1
@@ -181,8 +167,7 @@ class UavcanModule(WorkItemModule):
             self._publish(now, state)
 
     def nodes_online(self, now_us: int) -> list[int]:
-        return sorted(n for n, (t, _u, _h) in self.nodes.items()
-                      if now_us - t <= OFFLINE_TIMEOUT_US)
+        return list(self.stack.nodes_online()) if self.stack is not None else []
 
     def _publish(self, now: int, state: int) -> None:
         ctrl = self.ctrl
@@ -198,25 +183,39 @@ class UavcanModule(WorkItemModule):
         m.last_bus_off = self.last_bus_off_us
         m.frames_tx = self.frames_tx
         m.frames_rx = self.frames_rx
-        m.tx_timeouts = self.tx_timeouts
-        m.node_status_rx = self.node_status_rx
-        m.nodes_online = len(self.nodes_online(now))
+        m.tx_timeouts = self.stack.txq.tx_timeouts
+        m.node_status_rx = self.stack.node_status_rx
+        m.nodes_online = len(self.stack.nodes_online())
         self._pub.publish(m)
         self._last_pub_us = now
         self._last_state = state
 
     def status_lines(self) -> list[str]:
-        if self.ctrl is None:
+        if self.ctrl is None or self.stack is None:
             return []
         c = self.ctrl
+        s = self.stack
         now = self.platform.time_us()
+        rx = s.rxa
+        errs = ", ".join(f"{k} {v}" for k, v in rx.errors.items() if v) or "none"
         lines = [f"CAN1: {c.state.replace('_', '-')}, TEC {min(c.tec, 255)} REC {c.rec}, "
                  f"bus-off {self.bus_off_count} (recovered {self.recoveries}), "
                  f"error-passive {self.error_passive_count}",
-                 f"frames tx {self.frames_tx} rx {self.frames_rx}, NodeStatus tx timeouts "
-                 f"{self.tx_timeouts}, node ID {self.node_id}"]
-        for n, (t, up, health) in sorted(self.nodes.items()):
-            on = "online" if now - t <= OFFLINE_TIMEOUT_US else "offline"
-            lines.append(f"node {n}: {on}, uptime {up} s, health {health}, "
-                         f"last NodeStatus {(now - t) / 1e6:.1f} s ago")
+                 f"frames tx {self.frames_tx} rx {self.frames_rx}, transfers tx "
+                 f"{s.txq.transfers_tx} rx {rx.transfers}, tx timeouts {s.txq.tx_timeouts}, "
+                 f"node ID {self.node_id}",
+                 f"dropped transfers: {errs}"]
+        if s.allocator is not None:
+            a = s.allocator
+            lines.append(f"node-ID allocation server: {a.allocations} allocations, "
+                         f"table {dict(sorted((v, k.hex()) for k, v in a.table.items()))}")
+        for n in sorted(s.nodes.values(), key=lambda e: e.node_id):
+            on = "online" if n.online else "offline"
+            name = n.name or "?"
+            lines.append(f"node {n.node_id}: {on}, {name} sw {n.sw_version[0]}."
+                         f"{n.sw_version[1]}, uptime {n.uptime_s} s, health {n.health}, "
+                         f"last NodeStatus {(now - n.last_us) / 1e6:.1f} s ago")
+        if s.gnss is not None or s.mag is not None:
+            lines.append(f"sensors: GNSS fixes {s.gnss.fixes if s.gnss else '-'}, "
+                         f"mag samples {s.mag.samples if s.mag else '-'}")
         return lines
