@@ -270,24 +270,19 @@ class CommandHandler:
         return ACCEPTED if ok else FAILED
 
     def _cmd_calibration(self, cmd: Any) -> int:
-        """MAV_CMD_PREFLIGHT_CALIBRATION. PX4's commander refuses it while armed
-        (TEMPORARILY_REJECTED), answers a request with every parameter 0 (the end of an RC
-        calibration) ACCEPTED, and answers UNSUPPORTED a calibration it has no routine for.
-        This commander has no calibration routines (gyro, accelerometer, magnetometer, level,
-        baro, RC, ESC, airspeed): every requested calibration is UNSUPPORTED, so a ground
-        station says so at once instead of waiting for a time-out, with a STATUSTEXT that QGC
-        shows ("[cal] calibration failed: ..." is what its calibration page parses)."""
+        """MAV_CMD_PREFLIGHT_CALIBRATION: PX4's commander refuses it while armed
+        (TEMPORARILY_REJECTED); otherwise the calibration package starts the routine (gyro,
+        six-sided accelerometer, level horizon) on a work item of its own and answers ACCEPTED
+        at once, reporting progress and result by STATUSTEXT; params 1-6 all 0 cancel a
+        running one (or, with none running, are ACCEPTED: the end of an RC calibration); a
+        calibration without a routine is UNSUPPORTED (see calibration/runner.py)."""
         if self.arming_state == 2:
             self.last_reason = "Calibration denied: system armed"
             self.warn(self.last_reason)  # type: ignore[attr-defined]
             return TEMPORARILY_REJECTED
-        params = (cmd.param1, cmd.param2, cmd.param3, cmd.param4, cmd.param5, cmd.param6,
-                  cmd.param7)
-        if all(_param_int(p) == 0 for p in params):
-            return ACCEPTED
-        self.last_reason = "[cal] calibration failed: not supported by this firmware"
-        self.warn(self.last_reason)  # type: ignore[attr-defined]
-        return UNSUPPORTED
+        from firmware.modules.commander.calibration import request
+        result, self.last_reason = request(self, cmd)
+        return result
 
     def _cmd_storage(self, cmd: Any) -> int:
         """MAV_CMD_PREFLIGHT_STORAGE through the parameter store (PX4's commander): refused
