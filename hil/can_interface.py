@@ -215,6 +215,10 @@ class HilBus(BusABC):
         except OSError as exc:
             raise CanOperationError(f"hil: connection to the emulator lost: {exc}") from None
 
+    def flush_tx_buffer(self) -> None:
+        """Nothing to flush: a sent frame is handed to the emulator at once (its adapter node
+        queues it for the bus)."""
+
     def shutdown(self) -> None:
         self._close()
         super().shutdown()

@@ -44,7 +44,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
                 airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram,
-                fixed_utc=args.fixed_utc)
+                fixed_utc=args.fixed_utc, can=args.can, uart=args.uart, param=args.param)
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
@@ -194,6 +194,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fixed-utc", action="store_true",
                    help="GPS time starts at the fixed epoch of hil run (2024-06-01 12:00 UTC) "
                         "instead of now: same log names and content per seed")
+    p.add_argument("--can", action="append", default=[], metavar="BUS=SPEC",
+                   help="bind an emulated CAN bus to a python-can bus, e.g. CAN1=socketcan:vcan0, "
+                        "CAN1=virtual:chan0, CAN1=slcan:/dev/ttyACM0@115200 (docs/attaching.md)")
+    p.add_argument("--uart", action="append", default=[], metavar="NAME=URL",
+                   help="bind an emulated UART (gps, telem1, telem2, rc) to a pyserial URL or "
+                        "device, e.g. gps=/dev/ttyUSB0, telem1=socket://10.0.0.5:5760, "
+                        "gps=rfc2217://host:4000 (docs/attaching.md)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=V",
+                   help="parameter override at boot, e.g. UAVCAN_ENABLE=1")
     p.set_defaults(func=_cmd_fly)
 
     p = sub.add_parser("bench", help="measure the speed figures")

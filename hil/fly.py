@@ -26,6 +26,7 @@ import sys
 import time
 from typing import Any
 
+from hil.can_interface_host import CanHost
 from hil.shell_client import announce, withdraw
 from hil.system import SystemConfig, build_system
 
@@ -48,20 +49,58 @@ def honour_sigint() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _assignments(items: list[str], what: str) -> dict[str, str]:
+    """``["CAN1=virtual:x"]`` -> ``{"CAN1": "virtual:x"}``; ValueError saying what is wrong."""
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name or not value:
+            raise ValueError(f"{what} expects NAME=VALUE, got {item!r}")
+        out[name] = value
+    return out
+
+
+def _number(text: str) -> int | float:
+    try:
+        return int(text)
+    except ValueError:
+        return float(text)
+
+
 def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
          params: dict[str, Any] | None = None, quiet: bool = False,
-         keep_fram: bool = False, fixed_utc: bool = False) -> int:
+         keep_fram: bool = False, fixed_utc: bool = False, can: list[str] | None = None,
+         uart: list[str] | None = None, param: list[str] | None = None) -> int:
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
+    try:
+        can_bind = {k.upper(): v for k, v in _assignments(can or [], "--can").items()}
+        uart_bind = {k.lower(): v for k, v in _assignments(uart or [], "--uart").items()}
+        extra = {k: _number(v) for k, v in _assignments(param or [], "--param").items()}
+        from hil.bindings_can import parse_can_spec
+
+        for bus, spec in can_bind.items():
+            if bus not in ("CAN1", "CAN2"):
+                raise ValueError(f"--can: no CAN bus {bus!r} on the FMU (CAN1, CAN2)")
+            parse_can_spec(spec)
+    except ValueError as exc:
+        print(f"hil fly: {exc}", file=sys.stderr)
+        return 2
     honour_sigint()
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=airframe, speed=speed,
-                       console=True, udp_bridge=True, telem_pty=True,
+                       console=True, udp_bridge=True, telem_pty=True, uart_tcp=True,
                        fresh_fram=not keep_fram,
                        gps_utc_start_ns=None if fixed_utc else time.time_ns(),
-                       params={"EKF2_MAG_DECL": 2.6, **(params or {})})
-    orch, dev = build_system(cfg)
+                       can_hosts=("CAN1",), can_tcp=True, can_bind=can_bind,
+                       uart_bind=uart_bind,
+                       params={"EKF2_MAG_DECL": 2.6, **(params or {}), **extra})
+    try:
+        orch, dev = build_system(cfg)
+    except (ValueError, OSError) as exc:  # a binding that cannot open, a bad name
+        print(f"hil fly: {exc}", file=sys.stderr)
+        return 2
     say = (lambda text: None) if quiet else (lambda text: print(text, flush=True))
     orch.log = lambda text: print(text, file=sys.stderr, flush=True)  # deaths, reboots
     stop = {"now": False}
@@ -76,15 +115,31 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
 
             Injector(orch, dev).install()  # MAV_CMD_INJECT_FAILURE (SYS_FAILURE_EN 1)
             console = dev["console"]
+            cans = {d.bus: d for d in dev.values() if isinstance(d, CanHost)}
+            uarts = {name.upper(): dev[name].tcp_port for name in ("telem1", "telem2")
+                     if getattr(dev.get(name), "tcp_port", None)}
+            uarts["CONSOLE"] = console.tcp_port
             announce({"console_tcp": console.tcp_port, "console_pty": console.pty_name,
-                      "mavlink_udp": [14550, 14540], "speed": speed})
+                      "mavlink_udp": [14550, 14540], "speed": speed,
+                      "can": {b: {"port": h.tcp_port, "bitrate": h.bitrate}
+                              for b, h in cans.items()},
+                      "uart": uarts})
             say(f"hil fly: Pixhawk 1 (FMU + IO) with the JSBSim F450, {speed:g}x real time, "
                 f"seed {seed}")
             say("  QGroundControl / MAVProxy: the vehicle sends to udp 127.0.0.1:14550 "
                 "(mavproxy.py --master=udpin:127.0.0.1:14550)")
             say("  MAVSDK / API:               udp://:14540")
-            say(f"  TELEM1 (MAVLink, 57600):    {dev['telem1'].pty_name}   "
-                f"TELEM2: {dev['telem2'].pty_name}")
+            for name in ("telem1", "telem2"):
+                if name in dev and getattr(dev[name], "pty_name", None):
+                    say(f"  {name.upper()} (57600):           {dev[name].pty_name}   "
+                        f"hil://{name.upper()} (pyserial), tcp 127.0.0.1:{dev[name].tcp_port}")
+            for b, h in cans.items():
+                say(f"  {b} (python-can):          can.Bus(interface='hil', channel='{b}')   "
+                    f"(tcp 127.0.0.1:{h.tcp_port}, {h.bitrate // 1000} kbit/s)")
+            for name, spec in can_bind.items():
+                say(f"  {name} bound to:            {spec}")
+            for name, binding in dev.get("uart_bindings", {}).items():
+                say(f"  {name} bound to:            {binding.url}")
             say(f"  console (nsh):              hil shell   (tcp 127.0.0.1:{console.tcp_port}, "
                 f"pty {console.pty_name})")
             say("  Ctrl-C to stop.")
@@ -108,8 +163,13 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
         return 130
     finally:
         withdraw()
-        for name in ("console", "udp", "telem1", "telem2"):
+        for name in ("console", "udp", "telem1", "telem2", *sorted(
+                n for n, d in dev.items() if isinstance(d, CanHost))):
             close = getattr(dev.get(name), "close", None)
+            if close is not None:
+                close()
+        for binding in dev.get("uart_bindings", {}).values():
+            close = getattr(binding, "close", None)
             if close is not None:
                 close()
     return 0

@@ -69,6 +69,8 @@ class SystemConfig:
     #: emulated UART (telem1, telem2, gps, rc) -> pyserial URL or device bound to it
     #: (``hil fly --uart gps=socket://host:port``; hil.bindings_uart)
     uart_bind: dict[str, str] = field(default_factory=dict)
+    #: TELEM1/TELEM2 bridges also on TCP ports (the hil:// pyserial URLs of hil fly)
+    uart_tcp: bool = False
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -128,7 +130,7 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
                 continue  # bound to a device or URL instead (hil.bindings_uart)
             # A radio modem on the connector: its serial side is a host pty (57600 8N1, the
             # FMU's default for TELEM links), e.g. mavproxy.py --master=/dev/pts/N.
-            tb = SerialBridge(port, baud=57_600, tcp_port=None)
+            tb = SerialBridge(port, baud=57_600, tcp_port=0 if cfg.uart_tcp else None)
             hub.add(tb)
             devices[port] = tb
             wiring += uart_link(("fmu", port), (WORLD, port))
