@@ -230,13 +230,16 @@ class SideTurner:
         for text in new:
             self.texts.append(text)
             if text.startswith("[cal] pending:"):
-                pending = text.split(":", 1)[1].split()
-                side = next((s for s in self.order if s in pending and s != self.current),
-                            pending[0] if pending else "")
+                side = self.choose(text.split(":", 1)[1].split())
                 if side and side != self.current:
                     self.jig.turn_to_side(side, self.turn_s)
                     self.current = side
         return new
+
+    def choose(self, pending: list[str]) -> str:
+        """The side to turn to when these are pending ('' to stay)."""
+        return next((s for s in self.order if s in pending and s != self.current),
+                    pending[0] if pending else "")
 
     def run(self, timeout_s: float, step_s: float = 0.05) -> list[str]:
         """Play the operator until the calibration ends; every STATUSTEXT seen."""
