@@ -248,11 +248,13 @@ def test_every_common_command_gets_exactly_one_ack(throwaway):
 
 
 def test_preflight_calibration_unsupported_with_a_reason(throwaway):
-    """No calibration routine in this firmware: a gyro calibration is UNSUPPORTED at once
-    (PX4's answer for a calibration it has no routine for), with a STATUSTEXT."""
+    """A calibration without a routine (ESC, param7) is UNSUPPORTED at once (PX4's answer for
+    a calibration it has no routine for), with a STATUSTEXT; the routines themselves are
+    tests/calibration's."""
     gcs = throwaway.gcs
     mark = gcs.mark()
-    ack = gcs.command_long(mav.MAV_CMD_PREFLIGHT_CALIBRATION, [1], retries=0, timeout_s=0.5)
+    ack = gcs.command_long(mav.MAV_CMD_PREFLIGHT_CALIBRATION, [0, 0, 0, 0, 0, 0, 1], retries=0,
+                           timeout_s=0.5)
     assert ack.result == mav.MAV_RESULT_UNSUPPORTED
     gcs.step(0.1)
     assert any("calibration" in _text(m) for m in gcs.messages("STATUSTEXT", mark))
