@@ -11,6 +11,7 @@ from typing import Final
 
 __all__ = [
     "FLTMODE_TO_NAV", "MODE_NAMES", "NAV_NAMES", "NO_ARMING", "REQUIREMENTS",
+    "SELECTABLE_NAV_STATES", "VALID_NAV_STATES",
     "control_flags", "custom_to_nav", "nav_to_custom", "offboard_flags",
 ]
 
@@ -34,7 +35,7 @@ NAV_NAMES: Final[dict[int, str]] = {
     MANUAL: "Manual", ALTCTL: "Altitude", POSCTL: "Position", AUTO_MISSION: "Mission",
     AUTO_LOITER: "Hold", AUTO_RTL: "Return", ACRO: "Acro", DESCEND: "Descend",
     TERMINATION: "Termination", OFFBOARD: "Offboard", STAB: "Stabilized",
-    AUTO_TAKEOFF: "Takeoff", AUTO_LAND: "Land", AUTO_PRECLAND: "Precision Land",
+    AUTO_TAKEOFF: "Takeoff", AUTO_LAND: "Land", AUTO_PRECLAND: "Precision Landing",
 }
 
 # PX4 custom modes (MAVLink HEARTBEAT custom_mode / DO_SET_MODE param2, param3)
@@ -97,6 +98,14 @@ REQUIREMENTS: Final[dict[int, frozenset[str]]] = {
     DESCEND: frozenset(), TERMINATION: frozenset(),
     OFFBOARD: frozenset({"offboard"}), AUTO_PRECLAND: frozenset({"never"}),
 }
+
+#: the navigation states this commander implements, ascending (PX4's valid_nav_states_mask,
+#: the modes AVAILABLE_MODES lists); PX4's Orbit, Follow Target and VTOL Takeoff are not here
+VALID_NAV_STATES: Final = tuple(sorted(REQUIREMENTS))
+#: those a user may select (PX4's can_set_nav_states_mask): all but the ones that can never
+#: run in this stack (precision landing has no landing-target estimator here)
+SELECTABLE_NAV_STATES: Final = frozenset(n for n in VALID_NAV_STATES
+                                         if "never" not in REQUIREMENTS[n])
 
 #: modes from which arming is refused (PX4: the vehicle would not know what to do on the ground)
 NO_ARMING: Final = frozenset({AUTO_RTL, AUTO_LAND, DESCEND, TERMINATION, AUTO_PRECLAND})

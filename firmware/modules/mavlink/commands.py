@@ -18,8 +18,7 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from pymavlink.dialects.v20 import common as mav
-
+from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.streams import MAX_INTERVAL_US
 
 if TYPE_CHECKING:
@@ -214,6 +213,11 @@ class CommandService:
             inst.send(autopilot_version(inst))
         elif msg_id == PROTOCOL_VERSION_ID:
             send_protocol_version(inst)
+        elif msg_id == mav.MAVLINK_MSG_ID_AVAILABLE_MODES:
+            return inst.available_modes.request(self._local_p[1])
+        elif msg_id in (mav.MAVLINK_MSG_ID_COMPONENT_METADATA,
+                        mav.MAVLINK_MSG_ID_COMPONENT_INFORMATION):
+            inst.send(inst.ftp.metadata.message(msg_id, inst.boot_ms()))
         elif msg_id in REQUESTABLE:
             REQUESTABLE[msg_id](inst)
         elif not inst.send_stream_once(msg_id):

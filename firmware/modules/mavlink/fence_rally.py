@@ -36,8 +36,6 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
-
 from firmware.modules.dataman.points import (
     FENCE_CIRCLE_EXCLUSION,
     FENCE_CIRCLE_INCLUSION,
@@ -49,6 +47,7 @@ from firmware.modules.dataman.points import (
     fence_problem,
     lat_lon_deg,
 )
+from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.mission import (
     INT32_MAX,
     MAX_RETRIES,

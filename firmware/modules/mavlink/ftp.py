@@ -34,7 +34,10 @@ What it serves, and how paths map (the emulator's choices are marked):
 * ``@PARAM/param.pck`` (``?withdefaults=1``): every parameter in ArduPilot's packed format
   (AP_Filesystem_Param), which ground stations download instead of PARAM_REQUEST_LIST where a
   vehicle offers it (PX4 has no such file; the emulator serves it because the format is what
-  QGroundControl, Mission Planner and pymavlink's ``getparams`` read). Read only.
+  QGroundControl, Mission Planner and pymavlink's ``getparams`` read). Read only;
+* ``/etc/extras``: the component metadata files COMPONENT_METADATA names (general and
+  parameter metadata, plain and xz; :mod:`firmware.modules.mavlink.component_metadata`), a
+  read-only virtual folder as PX4's ROMFS ``/etc/extras``.
 
 Bad input always gets exactly one reply: a ``size`` above 239 is ``InvalidDataSize``; an
 unknown opcode ``UnknownCommand``; a path that is not UTF-8 ``FailErrno`` EINVAL (the
@@ -56,7 +59,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
+from firmware.modules.mavlink.dialect import mav
+from firmware.modules.mavlink.param_pack import PCK_FLOAT, PCK_INT32, pack_params
 
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
@@ -124,49 +128,10 @@ SD_PREFIX: Final = "/fs/microsd"
 LOG_ALIAS: Final = "@MAV_LOG"
 PARAM_DIR: Final = "@PARAM"
 PARAM_FILE: Final = "param.pck"
-#: ArduPilot's packed parameter file: magic without / with defaults
-PCK_MAGIC: Final = 0x671B
-PCK_MAGIC_DEFAULTS: Final = 0x671C
-PCK_INT32: Final = 3
-PCK_FLOAT: Final = 4
-
-
+EXTRAS_DIR: Final = "etc/extras"
 def crc32_px4(data: bytes, crc: int = 0) -> int:
     """PX4's ``crc32part`` (no inversion), computed with zlib's table code for speed."""
     return zlib.crc32(data, crc ^ 0xFFFFFFFF) ^ 0xFFFFFFFF
-
-
-def pack_params(params: Any, with_defaults: bool) -> bytes:
-    """Every parameter in ArduPilot's ``param.pck`` format, in index (name) order.
-
-    Header: magic, count, total (u16 each). A record: type (3 int32, 4 float; bit 4 set when a
-    default follows), ``(len(suffix) - 1) << 4 | shared``, the name's suffix after the
-    ``shared`` characters it has in common with the previous name, the value, and with
-    ``with_defaults`` the default if it differs from the value."""
-    out = bytearray()
-    prev = b""
-    names: list[str] = list(params.names)
-    for name in names:
-        d = params.defs[name]
-        raw = name.encode("ascii")
-        shared = 0
-        limit = min(len(prev), len(raw) - 1, 15)
-        while shared < limit and prev[shared] == raw[shared]:
-            shared += 1
-        suffix = raw[shared:]
-        is_int = d.type == "INT32"
-        fmt = "<i" if is_int else "<f"
-        value = params.values[name]
-        ptype = PCK_INT32 if is_int else PCK_FLOAT
-        extra = b""
-        if with_defaults and value != d.default:
-            ptype |= 0x10
-            extra = struct.pack(fmt, d.default)
-        out += bytes((ptype, (len(suffix) - 1) << 4 | shared)) + suffix
-        out += struct.pack(fmt, value) + extra
-        prev = raw
-    magic = PCK_MAGIC_DEFAULTS if with_defaults else PCK_MAGIC
-    return struct.pack("<HHH", magic, len(names), len(names)) + bytes(out)
 
 
 class Nak(Exception):
@@ -197,7 +162,7 @@ class _Target:
     __slots__ = ("kind", "path", "with_defaults")
 
     def __init__(self, kind: str, path: Path, with_defaults: bool = False) -> None:
-        self.kind = kind            # "sd", "sd_root", "param_file" or "param_dir"
+        self.kind = kind   # "sd", "sd_root", "param_file", "param_dir", "extra", "extras_dir"
         self.path = path
         self.with_defaults = with_defaults
 
@@ -241,11 +206,14 @@ class FtpServer:
     """The protocol without the link: a request payload in, the reply payload out.
 
     ``root`` is the SD card's host folder (None: no card, every file request is
-    FileNotFound); ``params`` the board's parameters (or None) for ``@PARAM/param.pck``."""
+    FileNotFound); ``params`` the board's parameters (or None) for ``@PARAM/param.pck``;
+    ``extras`` gives ``/etc/extras``'s files by name (built when first asked for)."""
 
-    def __init__(self, root: Path | None, params: Any) -> None:
+    def __init__(self, root: Path | None, params: Any,
+                 extras: Callable[[], dict[str, bytes]] | None = None) -> None:
         self.root = root
         self.params = params
+        self.extras = extras or dict
         self.session: _Session | None = None
         self._last_reply: bytes | None = None
         self._last_request = (0, 0, 0)   # (seq, opcode, session) of the cached reply
@@ -340,6 +308,11 @@ class FtpServer:
             if name != PARAM_FILE or self.params is None:
                 raise Nak(ERR_NOT_FOUND)
             return _Target("param_file", Path("."), query == "withdefaults=1")
+        if bare.rstrip("/") == EXTRAS_DIR or bare.startswith(EXTRAS_DIR + "/"):
+            name = bare[len(EXTRAS_DIR):].strip("/")
+            if name and name not in self.extras():
+                raise Nak(ERR_NOT_FOUND)
+            return _Target("extra" if name else "extras_dir", Path(name))
         if bare == LOG_ALIAS or bare.startswith(LOG_ALIAS + "/"):
             text = "/log" + bare[len(LOG_ALIAS):]
         if self.root is None:
@@ -373,6 +346,8 @@ class FtpServer:
         pymavlink would ask again for ever, so the emulator sends EOF.)"""
         if t.kind == "param_dir":
             entries = [f"F{PARAM_FILE}\t{len(self._param_bytes(False))}"]
+        elif t.kind == "extras_dir":
+            entries = [f"F{name}\t{len(data)}" for name, data in sorted(self.extras().items())]
         else:
             if not t.path.is_dir():
                 raise Nak(ERR_NOT_FOUND)
@@ -399,13 +374,19 @@ class FtpServer:
     def _param_bytes(self, with_defaults: bool) -> bytes:
         return pack_params(self.params, with_defaults) if self.params is not None else b""
 
+    def _virtual(self, t: _Target) -> bytes | None:
+        """A virtual file's bytes (None for a place that is not one)."""
+        if t.kind == "param_file":
+            return self._param_bytes(t.with_defaults)
+        return self.extras()[t.path.name] if t.kind == "extra" else None
+
     def _open(self, t: _Target, opcode: int) -> int:
         if self.session is not None:
             raise Nak(ERR_NO_SESSIONS)
-        if t.kind == "param_file":
+        data = self._virtual(t)
+        if data is not None:
             if opcode != OP_OPEN_RO:
                 raise Nak(ERR_PROTECTED)
-            data = self._param_bytes(t.with_defaults)
             self.session = _Session(-1, data, len(data), True, False)
             return len(data)
         if t.kind != "sd":
@@ -442,8 +423,9 @@ class FtpServer:
         return struct.pack("<I", n)
 
     def _crc(self, t: _Target) -> int:
-        if t.kind == "param_file":
-            return crc32_px4(self._param_bytes(t.with_defaults))
+        data = self._virtual(t)
+        if data is not None:
+            return crc32_px4(data)
         if t.kind != "sd" or t.path.is_dir():
             raise Nak(ERR_ERRNO, NUTTX_EISDIR)
         crc = 0
@@ -550,8 +532,13 @@ class FtpService:
 
     def __init__(self, inst: MavlinkInstance) -> None:
         self.inst = inst
+        from firmware.modules.mavlink.component_metadata import ComponentMetadata
+
         sd = inst.system.sd_root
-        self.server = FtpServer(None if sd is None else Path(sd), inst.system.params)
+        #: the component metadata files (also what COMPONENT_METADATA describes)
+        self.metadata = ComponentMetadata(inst.system.params)
+        self.server = FtpServer(None if sd is None else Path(sd), inst.system.params,
+                                self.metadata.files)
         self._burst_target = (0, 0)
 
     def handlers(self) -> dict[int, Callable[[Any], None]]:

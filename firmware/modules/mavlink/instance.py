@@ -24,8 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
-
+from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.streams import (
     DEFAULT_RATES,
     MAX_INTERVAL_US,
@@ -104,6 +103,7 @@ class MavlinkInstance(WorkItem):
         self._run_ns_window = [0, 0]  # busy ns, elapsed us since window start
         self._load = 0
         # services (import here: they need this class's API, not the other way round)
+        from firmware.modules.mavlink.available_modes import AvailableModesService
         from firmware.modules.mavlink.commands import CommandService
         from firmware.modules.mavlink.ftp import FtpService
         from firmware.modules.mavlink.mission import MissionService
@@ -125,8 +125,10 @@ class MavlinkInstance(WorkItem):
         self.statustext = StatustextService(self)
         self.ftp = FtpService(self)
         self.systime = SystemTimeService(self)
+        self.available_modes = AvailableModesService(self)
         self.services = (self.params, self.commands, self.mission, self.shell, self.logs,
-                         self.offboard, self.statustext, self.ftp, self.systime)
+                         self.offboard, self.statustext, self.ftp, self.systime,
+                         self.available_modes)
         self.handlers: dict[int, Callable[[Any], None]] = {
             mav.MAVLINK_MSG_ID_HEARTBEAT: self._on_heartbeat,
             mav.MAVLINK_MSG_ID_PING: self._on_ping,
@@ -166,6 +168,10 @@ class MavlinkInstance(WorkItem):
     def rx_drop_rate(self) -> float:
         total = self.rx_messages + self.rx_seq_lost
         return self.rx_seq_lost / total if total else 0.0
+
+    def silent(self) -> bool:
+        """A UDP link no client has talked to yet: it only announces itself (HEARTBEAT)."""
+        return self._udp is not None and not self._udp.rx_datagrams
 
     def load_permille(self) -> int:
         return self._load
@@ -362,7 +368,7 @@ class MavlinkInstance(WorkItem):
         # A UDP link nobody has talked to yet only announces itself (HEARTBEAT, as PX4
         # broadcasts heartbeats until a GCS connects); the other streams start with the first
         # datagram received, so unobserved links build no telemetry.
-        silent = self._udp is not None and not self._udp.rx_datagrams
+        silent = self.silent()
         if now < self._streams_due_us and silent == self._silent:
             return
         self._silent = silent

@@ -35,7 +35,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
+from firmware.modules.mavlink.dialect import mav
 
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance

@@ -272,8 +272,10 @@ class MavlinkModule(ModuleBase):
                 raise UsageError(f"unknown option {a!r}")
         if msg is None or rate is None:
             raise UsageError("stream needs -s MSG and -r RATE")
-        targets = [self.find(device, port)] if device or port else list(self.instances)
-        if not targets or targets[0] is None:
+        found = self.find(device, port) if device or port else None
+        targets = [found] if found is not None else [] if device or port else \
+            list(self.instances)
+        if not targets:
             self.print(f"mavlink: no instance on {device or port}")
             return 1
         for inst in targets:

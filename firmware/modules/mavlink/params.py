@@ -19,8 +19,7 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from pymavlink.dialects.v20 import common as mav
-
+from firmware.modules.mavlink.dialect import mav
 from firmware.platform.params import ParamError
 
 if TYPE_CHECKING:

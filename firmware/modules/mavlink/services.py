@@ -20,8 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
-
+from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.offboard import OffboardService
 from firmware.shell.line_editor import LineEditor
 

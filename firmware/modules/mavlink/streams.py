@@ -12,8 +12,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
-from pymavlink.dialects.v20 import common as mav
-
+from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.systime import system_time
 
 if TYPE_CHECKING:
@@ -313,6 +312,16 @@ def _mission_current(inst: MavlinkInstance) -> Any:
     return mav.MAVLink_mission_current_message(max(seq, 0), int(mission.count), state, 0)
 
 
+def _current_mode(inst: MavlinkInstance) -> Any:
+    return inst.available_modes.current_mode()
+
+
+def _modes_monitor(inst: MavlinkInstance) -> Any:
+    """PX4's AVAILABLE_MODES stream: it sends AVAILABLE_MODES_MONITOR (the list itself only on
+    request, see :mod:`firmware.modules.mavlink.available_modes`)."""
+    return inst.available_modes.monitor()
+
+
 class StreamDef:
     """One stream: message name and id, builder, and whether it may be requested once."""
 
@@ -320,7 +329,7 @@ class StreamDef:
 
     def __init__(self, name: str, build: Callable[[MavlinkInstance], Any]) -> None:
         self.name = name
-        self.msg_id = getattr(mav, f"MAVLINK_MSG_ID_{name}")
+        self.msg_id: int = getattr(mav, f"MAVLINK_MSG_ID_{name}")
         self.build = build
 
 
@@ -334,7 +343,8 @@ STREAMS: Final[dict[str, StreamDef]] = {s.name: s for s in (
     StreamDef("EXTENDED_SYS_STATE", _extended_sys_state), StreamDef("HOME_POSITION", _home),
     StreamDef("ALTITUDE", _altitude), StreamDef("ESTIMATOR_STATUS", _estimator_status),
     StreamDef("HIGHRES_IMU", _highres_imu), StreamDef("MISSION_CURRENT", _mission_current),
-    StreamDef("SYSTEM_TIME", system_time),
+    StreamDef("SYSTEM_TIME", system_time), StreamDef("CURRENT_MODE", _current_mode),
+    StreamDef("AVAILABLE_MODES", _modes_monitor),
 )}
 STREAM_BY_ID: Final[dict[int, StreamDef]] = {s.msg_id: s for s in STREAMS.values()}
 #: the longest stream interval: what MESSAGE_INTERVAL's int32 interval_us can report (~36 min)
@@ -344,20 +354,22 @@ _NORMAL: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 15.0, "ATTITU
            "LOCAL_POSITION_NED": 1.0, "GLOBAL_POSITION_INT": 5.0, "GPS_RAW_INT": 1.0,
            "VFR_HUD": 4.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 5.0, "SERVO_OUTPUT_RAW": 1.0,
            "EXTENDED_SYS_STATE": 1.0, "HOME_POSITION": 0.5, "ALTITUDE": 1.0,
-           "ESTIMATOR_STATUS": 0.5, "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0}
+           "ESTIMATOR_STATUS": 0.5, "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0,
+           "CURRENT_MODE": 0.5, "AVAILABLE_MODES": 0.3}
 _ONBOARD: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 5.0, "ATTITUDE": 100.0,
             "ATTITUDE_QUATERNION": 50.0, "LOCAL_POSITION_NED": 30.0,
             "GLOBAL_POSITION_INT": 50.0, "GPS_RAW_INT": 5.0, "VFR_HUD": 10.0,
             "BATTERY_STATUS": 0.5, "RC_CHANNELS": 20.0, "SERVO_OUTPUT_RAW": 10.0,
             "EXTENDED_SYS_STATE": 5.0, "HOME_POSITION": 0.5, "ALTITUDE": 10.0,
             "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0, "MISSION_CURRENT": 1.0,
-            "SYSTEM_TIME": 1.0}
+            "SYSTEM_TIME": 1.0, "CURRENT_MODE": 0.5, "AVAILABLE_MODES": 0.3}
 _CONFIG: Final = {"HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "ATTITUDE": 50.0, "ATTITUDE_QUATERNION": 50.0,
            "LOCAL_POSITION_NED": 30.0, "GLOBAL_POSITION_INT": 10.0, "GPS_RAW_INT": 10.0,
            "VFR_HUD": 20.0, "BATTERY_STATUS": 0.5, "RC_CHANNELS": 10.0,
            "SERVO_OUTPUT_RAW": 20.0, "EXTENDED_SYS_STATE": 2.0, "HOME_POSITION": 0.5,
            "ALTITUDE": 10.0, "ESTIMATOR_STATUS": 1.0, "HIGHRES_IMU": 50.0,
-           "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0}
+           "MISSION_CURRENT": 1.0, "SYSTEM_TIME": 1.0, "CURRENT_MODE": 0.5,
+           "AVAILABLE_MODES": 0.3}
 #: mode -> stream -> default rate (Hz)
 DEFAULT_RATES: Final[dict[str, dict[str, float]]] = {"normal": _NORMAL, "onboard": _ONBOARD,
                                               "config": _CONFIG, "minimal": {"HEARTBEAT": 1.0}}
