@@ -194,3 +194,25 @@ def can_bus_off(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any
 def _can_bus_off_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                       token: Any) -> None:
     board_call(rig, "bus.can_bus_off", token[0], "can_fault", token[1], False, 0.0)
+
+
+@fault_kind("bus.can_node_silent", level="bus",
+            doc="A DroneCAN node on the FMU's CAN1 goes silent (target 'fmu.<node>': its name, "
+                "uavcan_node125, can_gnss, can_mag, or its node ID): its MCU hangs or its "
+                "stub cable is cut, so it sends nothing and no longer ACKs; the rest of the "
+                "bus carries on. Its NodeStatus stops, and with it anything it published (a "
+                "CAN GNSS's Fix2, a compass's field). PX4's uavcan driver marks a node offline "
+                "3 s after its last NodeStatus (the DroneCAN offline timeout): "
+                "can_interface_status.nodes_online drops, `uavcan status` lists it offline "
+                "and dmesg says so; when it talks again it is back online.")
+def can_node_silent(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.can_node_silent"
+    board, node = _split(target, name, "<CAN node>")
+    board_call(rig, name, board, "can_node_silent", node, True)
+    return (board, node)
+
+
+@can_node_silent.stopper
+def _can_node_silent_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                          token: Any) -> None:
+    board_call(rig, "bus.can_node_silent", token[0], "can_node_silent", token[1], False)

@@ -6,7 +6,11 @@ GPS and the I2C compass use, so the sensors module and EKF2 take them as they ar
   covariance (sqrt of north + east, sqrt of down), the speed accuracy from the velocity
   variances, UTC from ``gnss_timestamp`` when its time standard is UTC; HDOP/VDOP and the
   visible satellites from ``Auxiliary``. One ``sensor_gps`` instance per node, taken at its
-  first fix (``advertise_multi``: after a serial GPS that started first).
+  first Fix2 with a fix (2D or 3D; before that nothing is published): the first free one from
+  ``first_instance()`` up. The driver passes 1 when the serial ``gps`` driver has found a
+  receiver (it claims its fixed instance 0 at its first fix, and a receiver is configured
+  within about a second while a GNSS's first fix takes longer), else 0: with no serial GPS
+  the CAN one is instance 0, the one EKF2 reads.
 * ``uavcan.equipment.ahrs.MagneticFieldStrength2`` -> ``sensor_mag`` (gauss, the node's frame),
   marked external, one instance per (node, sensor_id).
 
@@ -17,10 +21,12 @@ device type ``DRV_GPS_DEVTYPE_UAVCAN`` (0x85) / ``DRV_MAG_DEVTYPE_UAVCAN`` (0x88
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, Final
 
 from firmware.drivers.device import BUS_TYPE_UAVCAN, DeviceId
 from firmware.platform import Platform
+from firmware.platform.uorb import ORB_MULTI_MAX_INSTANCES
 
 __all__ = ["GnssBridge", "MagBridge", "DRV_GPS_DEVTYPE_UAVCAN", "DRV_MAG_DEVTYPE_UAVCAN"]
 
@@ -32,14 +38,24 @@ GNSS_TIME_STANDARD_UTC: Final = 2
 class GnssBridge:
     """Fix2 and Auxiliary of every GNSS node -> one ``sensor_gps`` instance per node."""
 
-    def __init__(self, platform: Platform) -> None:
+    def __init__(self, platform: Platform, first_instance: Callable[[], int]) -> None:
         self.platform = platform
+        self._first_instance = first_instance
         self._pubs: dict[int, Any] = {}
         self._msgs: dict[int, Any] = {}
         self.fixes = 0
 
+    def _advertise(self) -> Any:
+        orb = self.platform.orb
+        for i in range(self._first_instance(), ORB_MULTI_MAX_INSTANCES):
+            if not orb.exists("sensor_gps", i):
+                return orb.advertise("sensor_gps", i)
+        return orb.advertise_multi("sensor_gps")  # all taken: says so
+
     def on_fix2(self, node_id: int, f: Any, now_us: int) -> None:
         orb = self.platform.orb
+        if node_id not in self._pubs and int(f.status) < 2:
+            return  # no instance claimed before the node's first fix (see the module doc)
         msg = self._msgs.get(node_id)
         if msg is None:
             msg = self._msgs[node_id] = orb.new("sensor_gps")
@@ -82,7 +98,7 @@ class GnssBridge:
         msg.timestamp_time_relative = 0
         pub = self._pubs.get(node_id)
         if pub is None:
-            pub = self._pubs[node_id] = orb.advertise_multi("sensor_gps")
+            pub = self._pubs[node_id] = self._advertise()
         pub.publish(msg)
         self.fixes += 1
 

@@ -100,7 +100,8 @@ class UavcanModule(WorkItemModule):
         uid = bytes(range(0x30, 0x3C)) + bytes(4)
         self.stack = DronecanStack(self.platform, ctrl, self.node_id, dna=mode >= 2,
                                    sub_gps=bool(self.param("UAVCAN_SUB_GPS")),
-                                   sub_mag=bool(self.param("UAVCAN_SUB_MAG")), unique_id=uid)
+                                   sub_mag=bool(self.param("UAVCAN_SUB_MAG")), unique_id=uid,
+                                   gps_first_instance=self._gps_first_instance)
         self._rxq: deque[can.Message] = deque()
         self.bus_off_count = 0
         self.error_passive_count = 0
@@ -119,6 +120,13 @@ class UavcanModule(WorkItemModule):
         ctrl.enable()
         self.info(f"node {self.node_id} on CAN1 at {ctrl.bus.bitrate // 1000} kbit/s"
                   + (", node-ID allocation server" if mode >= 2 else ""))
+
+    def _gps_first_instance(self) -> int:
+        # the serial gps driver publishes on instance 0 once it has found its receiver (it
+        # claims that instance at its first fix): then a CAN GNSS takes the next one
+        gps: Any = self.system.modules.get("gps")
+        drv = getattr(gps, "driver", None)
+        return 1 if drv is not None and getattr(drv, "configured", False) else 0
 
     def _stop(self) -> None:
         ctrl = self.ctrl

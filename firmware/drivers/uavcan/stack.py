@@ -13,6 +13,7 @@ offline timeout); going offline and coming back are reported in dmesg.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Final
 
 import can
@@ -64,7 +65,8 @@ class DronecanStack:
     """Transfers over ``ctrl`` for node ``node_id``; ``dna`` runs the allocation server."""
 
     def __init__(self, platform: Platform, ctrl: Any, node_id: int, dna: bool,
-                 sub_gps: bool, sub_mag: bool, unique_id: bytes) -> None:
+                 sub_gps: bool, sub_mag: bool, unique_id: bytes,
+                 gps_first_instance: Callable[[], int] = lambda: 0) -> None:
         self.platform = platform
         self.ctrl = ctrl
         self.node_id = node_id
@@ -74,7 +76,7 @@ class DronecanStack:
         self.tids = TransferIds()
         self.nodes: dict[int, NodeEntry] = {}
         self.allocator = Allocator(node_id, self._occupied) if dna else None
-        self.gnss = GnssBridge(platform) if sub_gps else None
+        self.gnss = GnssBridge(platform, gps_first_instance) if sub_gps else None
         self.mag = MagBridge(platform) if sub_mag else None
         self.node_status_rx = 0
         self.node_info_answered = 0
