@@ -96,9 +96,10 @@ class UartBinding:
         import serial
 
         try:
-            n = self.serial.in_waiting
-            if n:
-                data = self.serial.read(max(n, 1024))
+            # timeout=0: a non-blocking read, which also notices a device that went away
+            # (in_waiting does not: a pty whose other end closed reports 0 bytes forever)
+            data = self.serial.read(4096)
+            if data:
                 room = HOST_BUFFER_BYTES - len(self._pending)
                 if len(data) > room:
                     self.dropped += len(data) - room
