@@ -8,6 +8,8 @@ from __future__ import annotations
 import errno
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from smbus2 import i2c_msg
 
 from board.i2c import I2cBus, I2cFault, I2cTarget
@@ -15,6 +17,7 @@ from board.kernel import Kernel
 from hil.smbus_emulated import EmulatedSMBus
 from peripherals.errors import rng_for
 from peripherals.hmc5883 import Hmc5883
+from tests.fuzzing import fuzz
 from tests.hostbus.rigs import environment
 
 MAG = 0x1E
@@ -127,3 +130,34 @@ def test_close_and_context_manager(rig) -> None:
     assert exc.value.errno == errno.EBADF
     with pytest.raises(TypeError, match="I2cBus"):
         EmulatedSMBus("/dev/i2c-1")  # type: ignore[arg-type]
+
+
+_ARG = st.one_of(st.integers(-300, 70_000), st.none(), st.text(max_size=3),
+                 st.lists(st.integers(-2, 300), max_size=40), st.binary(max_size=40),
+                 st.floats(allow_nan=True))
+_CALLS = ("write_quick", "read_byte", "write_byte", "read_byte_data", "write_byte_data",
+          "read_word_data", "write_word_data", "read_i2c_block_data", "write_i2c_block_data")
+
+
+@fuzz(examples=150)
+@given(calls=st.lists(st.tuples(st.sampled_from(_CALLS), st.sampled_from([MAG, 0x30, 0x50]),
+                                st.lists(_ARG, min_size=1, max_size=3)), max_size=12))
+def test_random_script_calls_raise_only_documented_errors(calls) -> None:
+    """A script's calls with any arguments: an answer, or ValueError/TypeError (bad argument)
+    or OSError (the bus said no); the chip and the bus stay usable."""
+    k = Kernel("t")
+    bus = I2cBus(k, "I2C1")
+    bus.attach(MAG, Hmc5883(k, environment(), rng_for(1, "hmc5883")))
+    bus.attach(0x30, _OneByteOnly())
+    sm = EmulatedSMBus(bus)
+    for name, addr, args in calls:
+        method = getattr(sm, name)
+        n_args = {"write_quick": 0, "read_byte": 0, "write_byte": 1, "read_byte_data": 1,
+                  "read_word_data": 1}.get(name, 2)
+        args = (args * 3)[:n_args]
+        try:
+            method(addr, *args)
+        except (ValueError, TypeError, OSError):
+            pass
+    sm.write_byte_data(MAG, 0x00, 0x10)
+    assert sm.read_i2c_block_data(MAG, 0x00, 1) == [0x10]
