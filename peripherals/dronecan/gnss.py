@@ -18,6 +18,7 @@ import numpy as np
 
 from board.can import CanBus
 from board.kernel import PRIO_HW, Kernel
+from firmware.lib.uavcan.transfer import types
 from peripherals.dronecan.node import DronecanNode
 from peripherals.physics import Environment
 from peripherals.ublox.solution import LEAP_SECONDS, Solution, SolutionModel
@@ -67,7 +68,7 @@ class GnssNode(DronecanNode):
             self.send(self._aux(sol), AUXILIARY_DTID, now + FIX_PERIOD_NS)
 
     def _fix2(self, sol: Solution, now_ns: int) -> Any:
-        g = self.types.uavcan.equipment.gnss
+        g = types().uavcan.equipment.gnss
         f = g.Fix2()
         f.timestamp.usec = now_ns // 1000
         f.gnss_timestamp.usec = sol.utc_ns // 1000 if sol.time_valid else 0
@@ -88,17 +89,11 @@ class GnssNode(DronecanNode):
         return f
 
     def _aux(self, sol: Solution) -> Any:
-        a = self.types.uavcan.equipment.gnss.Auxiliary()
+        a = types().uavcan.equipment.gnss.Auxiliary()
         a.hdop, a.vdop, a.pdop = sol.hdop, sol.vdop, sol.pdop
         a.sats_visible = min(127, len(sol.sats))
         a.sats_used = min(63, sol.num_sv)
         return a
-
-    @property
-    def types(self) -> Any:
-        from firmware.lib.uavcan.transfer import types
-
-        return types()
 
     def stats(self) -> dict[str, Any]:
         return super().stats() | {"fixes_tx": self.fixes_tx}

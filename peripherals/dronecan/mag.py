@@ -15,6 +15,7 @@ import numpy as np
 
 from board.can import CanBus
 from board.kernel import PRIO_HW, Kernel
+from firmware.lib.uavcan.transfer import types
 from peripherals.dronecan.node import DronecanNode
 from peripherals.errors import AxisErrors, ImuErrorModel
 from peripherals.physics import Environment
@@ -49,8 +50,6 @@ class MagNode(DronecanNode):
     def _sample(self) -> None:
         if self.silent:
             return
-        from firmware.lib.uavcan.transfer import types
-
         now = self.kernel.now_ns
         x, y, z = self.errors.apply(now, self.env.mag_gauss, odr_hz=RATE_HZ)
         m = types().uavcan.equipment.ahrs.MagneticFieldStrength2()
