@@ -80,7 +80,9 @@ class UartBinding:
             import serial
 
             try:
-                serial_port = serial.serial_for_url(url, baudrate=self.config[0], timeout=0,
+                baud, bits, parity, stop, _inv = self.config
+                serial_port = serial.serial_for_url(url, baudrate=baud, bytesize=bits,
+                                                    parity=parity, stopbits=stop, timeout=0,
                                                     write_timeout=0)
             except (serial.SerialException, ValueError, OSError) as exc:
                 raise ValueError(f"--uart {name}={url}: cannot open: {exc}") from None
@@ -132,7 +134,9 @@ class UartBinding:
                 if cfg[0] != self.config[0]:
                     self.baud_changes += 1
                 self.config = cfg
-                self.serial.baudrate = cfg[0]  # the firmware changed the UART: so does the port
+                # the firmware changed the UART: so does the port
+                self.serial.baudrate, self.serial.bytesize = cfg[0], cfg[1]
+                self.serial.parity, self.serial.stopbits = cfg[2], cfg[3]
             data = payload[5]
             if data:
                 self.serial.write(data)

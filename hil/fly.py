@@ -10,7 +10,12 @@ MAVLink is reachable on 127.0.0.1 the way PX4 SITL users expect:
   pseudo-terminals, as a radio modem plugged into a laptop would appear,
 
 and the FMU console (nsh) is on a host pseudo-terminal and a TCP port, which ``hil shell``
-finds by itself. The safety switch is pressed for the user unless
+finds by itself. Tools and hardware attach as well (docs/attaching.md): CAN1 is a python-can bus
+(``can.Bus(interface="hil", channel="CAN1")``, ``python -m can.logger -i hil -c CAN1``, a
+``dronecan`` node), TELEM1/TELEM2 are pyserial URLs (``hil://TELEM1``), ``--can CAN1=<bus>``
+binds CAN1 to a real or virtual python-can bus and ``--uart gps=<URL>`` a real device or a
+``socket://``/``rfc2217://`` endpoint to an emulated UART; the endpoints are printed at start
+and announced for discovery. The safety switch is pressed for the user unless
 ``--keep-safety`` is given, since a ground station cannot press it (four seconds after power on,
 once the FMU reports ready to arm: the IO ignores the button before).
 
@@ -131,15 +136,15 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
             say("  MAVSDK / API:               udp://:14540")
             for name in ("telem1", "telem2"):
                 if name in dev and getattr(dev[name], "pty_name", None):
-                    say(f"  {name.upper()} (57600):           {dev[name].pty_name}   "
-                        f"hil://{name.upper()} (pyserial), tcp 127.0.0.1:{dev[name].tcp_port}")
+                    say(f"  {name.upper() + ' (57600):':<28}{dev[name].pty_name}   "
+                        f"hil://{name.upper()} (pyserial; tcp 127.0.0.1:{dev[name].tcp_port})")
             for b, h in cans.items():
-                say(f"  {b} (python-can):          can.Bus(interface='hil', channel='{b}')   "
-                    f"(tcp 127.0.0.1:{h.tcp_port}, {h.bitrate // 1000} kbit/s)")
+                say(f"  {b + ' (python-can, DroneCAN):':<28}can.Bus(interface='hil', "
+                    f"channel='{b}')   (tcp 127.0.0.1:{h.tcp_port}, {h.bitrate // 1000} kbit/s)")
             for name, spec in can_bind.items():
-                say(f"  {name} bound to:            {spec}")
+                say(f"  {name + ' bound to:':<28}{spec}")
             for name, binding in dev.get("uart_bindings", {}).items():
-                say(f"  {name} bound to:            {binding.url}")
+                say(f"  {name.upper() + ' bound to:':<28}{binding.url}")
             say(f"  console (nsh):              hil shell   (tcp 127.0.0.1:{console.tcp_port}, "
                 f"pty {console.pty_name})")
             say("  Ctrl-C to stop.")
