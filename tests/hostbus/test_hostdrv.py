@@ -15,6 +15,9 @@ from board.kernel import Kernel
 from hil import cli, hostdrv
 from hil.hostbus import SMBusHandle
 from hil.smbus_emulated import EmulatedSMBus
+from peripherals.errors import rng_for
+from peripherals.hmc5883 import Hmc5883
+from tests.hostbus.rigs import environment, real_smbus_on
 
 
 class FakeClock:
@@ -46,6 +49,33 @@ def test_emulated_run_prints_listener_lines_and_a_summary() -> None:
     assert 60 <= n <= 75                                  # 150 Hz less the bus time
     assert "driver errors 0, host bus errors 0" in text
     assert clock.slept == pytest.approx(0.5, abs=0.01)     # paced: it waited, not spun
+
+
+def test_the_i2c_path_opens_smbus2_and_closes_it(monkeypatch) -> None:
+    """``--i2c 1`` as on a Raspberry Pi: smbus2's own SMBus class opened on bus 1, only its
+    I2C_RDWR ioctl answered by an emulated HMC5883L (which shares the run's kernel, as a real
+    chip shares the wall clock)."""
+    import smbus2
+
+    k = Kernel("host")
+    bus = I2cBus(k, "I2C1", clock_hz=400_000)
+    bus.attach(0x1E, Hmc5883(k, environment(), rng_for(0, "hmc5883")))
+    opened: list = []
+
+    def smbus_factory(n: int):
+        opened.append(n)
+        opened.append(real_smbus_on(bus, monkeypatch))
+        return opened[-1]
+
+    monkeypatch.setattr(smbus2, "SMBus", smbus_factory)
+    monkeypatch.setattr(hostdrv, "Kernel", lambda name: k)
+    clock, out = FakeClock(), io.StringIO()
+    rc = hostdrv.main("hmc5883", i2c=1, duration_s=0.3, print_hz=0, out=out, clock=clock,
+                      sleep=clock.sleep)
+    assert rc == 0, out.getvalue()
+    assert opened[0] == 1 and opened[1].fd is None          # opened bus 1, closed at the end
+    n = int(re.search(r"hostdrv: (\d+) sensor_mag messages", out.getvalue()).group(1))
+    assert n >= 40
 
 
 def test_ms5611_emulated_run() -> None:
