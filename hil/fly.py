@@ -120,6 +120,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
 
             Injector(orch, dev).install()  # MAV_CMD_INJECT_FAILURE (SYS_FAILURE_EN 1)
             console = dev["console"]
+            # (the console's line stays the first with "tcp 127.0.0.1:<port>": scripts and
+            # tests/clients read the console port from it)
             cans = {d.bus: d for d in dev.values() if isinstance(d, CanHost)}
             uarts = {name.upper(): dev[name].tcp_port for name in ("telem1", "telem2")
                      if getattr(dev.get(name), "tcp_port", None)}
@@ -137,10 +139,10 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
             for name in ("telem1", "telem2"):
                 if name in dev and getattr(dev[name], "pty_name", None):
                     say(f"  {name.upper() + ' (57600):':<28}{dev[name].pty_name}   "
-                        f"hil://{name.upper()} (pyserial; tcp 127.0.0.1:{dev[name].tcp_port})")
+                        f"hil://{name.upper()} (pyserial; TCP port {dev[name].tcp_port})")
             for b, h in cans.items():
                 say(f"  {b + ' (python-can, DroneCAN):':<28}can.Bus(interface='hil', "
-                    f"channel='{b}')   (tcp 127.0.0.1:{h.tcp_port}, {h.bitrate // 1000} kbit/s)")
+                    f"channel='{b}')   (TCP port {h.tcp_port}, {h.bitrate // 1000} kbit/s)")
             for name, spec in can_bind.items():
                 say(f"  {name + ' bound to:':<28}{spec}")
             for name, binding in dev.get("uart_bindings", {}).items():
