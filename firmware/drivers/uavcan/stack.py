@@ -6,8 +6,8 @@ Imported when ``uavcan start`` runs, never at boot (the ``dronecan`` package's D
 a few hundred milliseconds to load), so a board with UAVCAN disabled pays nothing.
 
 Node discovery is PX4's: a node is known from its first NodeStatus; the FMU then asks it for
-its GetNodeInfo (again every second until it answers, and again after a restart, seen as its
-uptime going back). A node is online while its NodeStatus arrives within 3 s (the spec's
+its GetNodeInfo (again every second until it answers, five times at most, and again after a
+restart, seen as its uptime going back). A node is online while its NodeStatus arrives within 3 s (the spec's
 offline timeout); going offline and coming back are reported in dmesg.
 """
 
@@ -36,6 +36,8 @@ MAG2_DTID: Final = 1002
 OFFLINE_TIMEOUT_US: Final = 3_000_000
 NODE_STATUS_PERIOD_US: Final = 1_000_000
 NODE_INFO_RETRY_US: Final = 1_000_000
+#: GetNodeInfo requests to a node that never answers (a replayed recording, a bare adapter)
+NODE_INFO_TRIES: Final = 5
 #: what the FMU's GetNodeInfo says of itself (PX4 names its node after the board)
 FMU_NODE_NAME: Final = "org.pixhawk.fmuv2"
 FMU_SW_VERSION: Final = (1, 14)
@@ -46,7 +48,7 @@ class NodeEntry:
     """What the FMU knows of one node on the bus."""
 
     __slots__ = ("node_id", "last_us", "uptime_s", "health", "mode", "online", "name",
-                 "sw_version", "info_asked_us", "status_count")
+                 "sw_version", "info_asked_us", "info_tries", "status_count")
 
     def __init__(self, node_id: int) -> None:
         self.node_id = node_id
@@ -58,6 +60,7 @@ class NodeEntry:
         self.name = ""
         self.sw_version = (0, 0)
         self.info_asked_us: int | None = None
+        self.info_tries = 0
         self.status_count = 0
 
 
@@ -110,9 +113,10 @@ class DronecanStack:
                 n.online = False
                 self.platform.warn("uavcan", f"node {n.node_id} ({n.name or 'unknown'}) offline: "
                                              f"no NodeStatus for {OFFLINE_TIMEOUT_US // 1000} ms")
-            if n.online and not n.name and (n.info_asked_us is None
-                                            or now_us - n.info_asked_us >= NODE_INFO_RETRY_US):
+            if n.online and not n.name and n.info_tries < NODE_INFO_TRIES and (
+                    n.info_asked_us is None or now_us - n.info_asked_us >= NODE_INFO_RETRY_US):
                 n.info_asked_us = now_us
+                n.info_tries += 1
                 req = types().uavcan.protocol.GetNodeInfo.Request()
                 self.send(req, GET_NODE_INFO_DTID, now_us, now_us + NODE_INFO_RETRY_US,
                           dest=n.node_id)
@@ -163,6 +167,7 @@ class DronecanStack:
         if uptime < n.uptime_s:  # restarted: ask again who it is
             n.name = ""
             n.info_asked_us = None
+            n.info_tries = 0
         n.last_us = now_us
         n.uptime_s = uptime
         n.health = int(p.health)
