@@ -123,8 +123,8 @@ class CanHostPort:
         if ok:
             self.sent += 1
             data = bytes(msg.dlc) if msg.is_remote_frame else bytes(msg.data)
-            self.board.emit(self.port, t_ns, (msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame,
-                              data, self._tag))
+            self.board.emit(self.port, t_ns, (msg.arbitration_id, msg.is_extended_id,
+                                              msg.is_remote_frame, data, self._tag))
         self._pump()
 
     def stats(self) -> dict[str, Any]:

@@ -39,7 +39,7 @@ HOST_BUFFER_BYTES = 65_536
 class Connector:
     board: str
     port: str
-    config: tuple[int, int, str, int, int]  # the UART's settings at reset (baud, bits, P, stop, inv)
+    config: tuple[int, int, str, int, int]  # settings at reset: baud, bits, parity, stop, invert
     output: bool = True                      # the board transmits on it
 
 

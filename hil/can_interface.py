@@ -235,10 +235,11 @@ class HilBus(BusABC):
             self._sock = None
 
     @staticmethod
-    def _detect_available_configs() -> list[dict[str, Any]]:
+    def _detect_available_configs() -> list[can.typechecking.AutoDetectedConfig]:
         try:
             found = discover_can()
         except OSError:
             return []
-        return [{"interface": "hil", "channel": ch, "port": ep["port"]}
-                for ch, ep in sorted(found.items())]
+        # "port" goes beyond python-can's TypedDict: Bus(**config) needs it to reach the bus
+        return [{"interface": "hil", "channel": ch,  # type: ignore[typeddict-unknown-key]
+                 "port": ep["port"]} for ch, ep in sorted(found.items())]

@@ -191,7 +191,7 @@ class CanHost:
         wall0, t0 = self._anchor
         return wall0 + (t_ns - t0) / NS_PER_S / self.speed
 
-    # -- host device interface ----------------------------------------------------------------------
+    # -- host device interface -------------------------------------------------------------------
 
     def run_until(self, t_ns: int) -> None:
         self._t_ns = t_ns
@@ -276,7 +276,7 @@ class CanHost:
         unregister(self)
 
 
-# -- in-process registry (the plug-in finds a host by channel name) ---------------------------------
+# -- in-process registry (the plug-in finds a host by channel name) ----------------------------
 
 _REGISTRY: dict[str, tuple[CanHost, Any]] = {}
 
