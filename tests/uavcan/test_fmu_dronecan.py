@@ -148,3 +148,13 @@ def test_silent_node_goes_offline_after_3_s_and_comes_back(tmp_path):
     k.run(k.now_ns + 1_100 * MS)
     assert b.ctl_topic("can_interface_status")["nodes_online"] == 1
     assert any("node 20 (org.hil.gnss) back online" in m[3] for m in b.ctl_dmesg())
+
+
+def test_a_bitrate_other_than_the_bus_keeps_the_driver_off_and_says_why(tmp_path):
+    b = FmuV2Board(seed=3, fram_path=str(tmp_path / "fram.bin"), sd_root=str(tmp_path),
+                   params={"SYS_AUTOSTART": 0, "UAVCAN_ENABLE": 1, "UAVCAN_BITRATE": 500_000})
+    b.kernel.run(600 * MS)
+    assert "uavcan" not in b.system.modules.running()
+    assert any("UAVCAN_BITRATE 500000" in m[3] and "1000000 bit/s" in m[3]
+               for m in b.ctl_dmesg())
+    assert not b.can_ctrl["CAN1"].enabled

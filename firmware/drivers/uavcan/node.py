@@ -89,8 +89,10 @@ class UavcanModule(WorkItemModule):
         bitrate = int(self.param("UAVCAN_BITRATE"))
         wire = int(buses["CAN1"].bitrate)
         if bitrate != wire:
-            raise ModuleError(f"UAVCAN_BITRATE {bitrate}: the emulated CAN1 and its nodes run "
-                              f"at {wire} bit/s only; the controller would see only errors")
+            why = (f"UAVCAN_BITRATE {bitrate}: the emulated CAN1 and its nodes run at {wire} "
+                   f"bit/s only; the controller would see only errors")
+            self.error(why)  # in dmesg as PX4_ERR, as well as on the console
+            raise ModuleError(why)
         from firmware.drivers.uavcan.stack import DronecanStack
 
         self.ctrl = ctrl = hw.can_ctrl["CAN1"]
