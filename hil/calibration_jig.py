@@ -12,8 +12,9 @@ on the world only; the firmware sees nothing but its sensors.
   running (battery, ESC inputs) and its truth records leave with the jig's attitude.
 
 :class:`SideTurner` is the operator QGroundControl's page asks for: it reads the vehicle's
-STATUSTEXT through a :class:`~hil.gcs.GcsClient` and turns the jig to a pending side whenever
-the vehicle asks for one ("[cal] pending: ...").
+STATUSTEXT through a :class:`~hil.gcs.GcsClient`, turns the jig to a pending side whenever
+the vehicle asks for one ("[cal] pending: ...") and spins it once about the vertical when a
+magnetometer calibration says "[cal] Rotate vehicle around the detected orientation".
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from hil.world.magnetic import earth_field_ned_gauss
 from hil.world.truth import Truth, quat_from_euler
 from hil.worldlink import truth_record
 
-__all__ = ["SIDE_ATTITUDES_DEG", "TRUTH_WIRE", "CalibrationJig", "SideTurner"]
+__all__ = ["SIDE_ATTITUDES_DEG", "TRUTH_WIRE", "CalibrationJig", "SideTurner", "statustexts"]
 
 G0 = 9.80665
 Mat = list[list[float]]
@@ -140,6 +141,15 @@ class CalibrationJig:
         roll, pitch = SIDE_ATTITUDES_DEG[side]
         self.turn_to(roll, pitch, 0.0, duration_s)
 
+    def spin(self, turns: float = 1.0, duration_s: float = 2.0) -> None:
+        """Turn about the vertical (a magnetometer calibration's rotation), ``turns`` times
+        round, at a constant rate, ending where it started (after whole turns)."""
+        r = self.r_bn
+        axis = (r[2][0], r[2][1], r[2][2])  # NED down in body axes
+        angle = 2.0 * math.pi * turns
+        self._motion = ("turn", self._t_ns, max(1, int(duration_s * 1e9)), r, axis, angle, 0.0)
+        self._end_target = _mul(r, _axis_angle(axis, angle))
+
     def shake(self, amplitude_rad_s: float = 0.5, freq_hz: float = 2.0,
               duration_s: float = 1.0) -> None:
         """Rock about the body z axis (rate ``amplitude sin(2 pi f t)``), back where it was."""
@@ -208,16 +218,35 @@ class CalibrationJig:
         self.world.input(port, t_ns, payload)
 
 
+def statustexts(messages: list[Any]) -> list[str]:
+    """The texts of STATUSTEXT messages, chunks joined (MAVLink 2: a text longer than 50
+    characters goes in chunks sharing an ``id``, ``chunk_seq`` counting; the last is shorter
+    than 50), as QGroundControl shows them."""
+    out: list[str] = []
+    partial: dict[int, list[str]] = {}
+    for m in messages:
+        text = m.text.split("\0", 1)[0] if isinstance(m.text, str) else str(m.text)
+        if not getattr(m, "id", 0):
+            out.append(text)
+            continue
+        parts = partial.setdefault(m.id, [])
+        parts.append(text)
+        if len(m.text.rstrip("\0")) < 50:
+            out.append("".join(partial.pop(m.id)))
+    return out
+
+
 class SideTurner:
     """The operator of a six-sided calibration: each "[cal] pending: ..." turns the jig to
     the first pending side it has not just been put on (``order``: the sides to prefer)."""
 
     def __init__(self, gcs: Any, jig: CalibrationJig, turn_s: float = 1.0,
-                 order: tuple[str, ...] = ("down", "up", "back", "front", "left", "right")
-                 ) -> None:
+                 order: tuple[str, ...] = ("down", "up", "back", "front", "left", "right"),
+                 spin_s: float = 2.0) -> None:
         self.gcs = gcs
         self.jig = jig
         self.turn_s = turn_s
+        self.spin_s = spin_s
         self.order = order
         self.mark = gcs.mark()
         self.texts: list[str] = []
@@ -225,16 +254,31 @@ class SideTurner:
 
     def poll(self) -> list[str]:
         """Read new STATUSTEXTs and act on them; the new texts."""
-        new = [m.text for m in self.gcs.messages("STATUSTEXT", self.mark)]
-        self.mark = self.gcs.mark()
+        msgs = self.gcs.messages("STATUSTEXT", self.mark)
+        held = 0  # a text still missing chunks is read again next time, whole
+        while held < len(msgs) and getattr(msgs[-1 - held], "id", 0) and \
+                len(msgs[-1 - held].text.rstrip("\0")) >= 50:
+            held += 1
+        self.mark = self._cursor_at(msgs[-held]) if held else self.gcs.mark()
+        new = statustexts(msgs[:len(msgs) - held])
         for text in new:
             self.texts.append(text)
-            if text.startswith("[cal] pending:"):
+            if text == "[cal] Rotate vehicle around the detected orientation":
+                self.jig.spin(1.0, self.spin_s)
+            elif text.startswith("[cal] pending:"):
                 side = self.choose(text.split(":", 1)[1].split())
                 if side and side != self.current:
                     self.jig.turn_to_side(side, self.turn_s)
                     self.current = side
         return new
+
+    def _cursor_at(self, message: Any) -> int:
+        """The GCS log cursor just before ``message``."""
+        log = self.gcs.log
+        for k in range(len(log) - 1, -1, -1):
+            if log[k][1] is message:
+                return self.gcs._base + k
+        return self.gcs.mark()
 
     def choose(self, pending: list[str]) -> str:
         """The side to turn to when these are pending ('' to stay)."""

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mav
 
-from hil.calibration_jig import TRUTH_WIRE, CalibrationJig
+from hil.calibration_jig import TRUTH_WIRE, CalibrationJig, statustexts
 from hil.devices import DeviceHub
 from hil.gcs import GcsClient, udp_wires
 from hil.orchestrator import BoardSpec, Orchestrator
@@ -41,7 +41,7 @@ class Rig:
         return self.board.system.params
 
     def texts(self, since: int) -> list[str]:
-        return [m.text for m in self.gcs.messages("STATUSTEXT", since)]
+        return statustexts(self.gcs.messages("STATUSTEXT", since))
 
     def cal_texts(self, since: int) -> list[str]:
         return [t for t in self.texts(since) if t.startswith("[cal]")]

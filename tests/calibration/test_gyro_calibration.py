@@ -48,7 +48,7 @@ def test_gyro_calibration_writes_the_seeded_offsets_and_saves_them(rig):
     assert texts[0] == "[cal] calibration started: 2 gyro"
     assert texts[-1] == "[cal] calibration done: gyro"
     progress = [int(t[len("[cal] progress <"):-1]) for t in texts if "progress <" in t]
-    assert progress == sorted(progress) and progress[0] < 10 and progress[-1] == 100
+    assert progress == sorted(progress) and progress[0] < 10 and progress[-1] == 100, "\n".join(texts)
     # each gyro in a slot of its own, by device id, with the offsets its model was seeded with
     expected = {gyro_ids[0]: _expected_offset(rig, "mpu6000", "", "sensor_gyro", 0),
                 gyro_ids[1]: _expected_offset(rig, "l3gd20", "errors", "sensor_gyro", 1)}

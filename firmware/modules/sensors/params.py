@@ -84,6 +84,13 @@ def _build() -> tuple[ParamDef, ...]:
                      long="Subtracted from the measured static pressure.", decimals=1),
         ]
     defs += [
+        ParamDef("CAL_MAG_SIDES", "INT32", 63, min=34, max=63, group=_CAL,
+                 short="Bitfield selecting mag sides for calibration",
+                 long="The sides the magnetometer calibration asks for (bit 0 tail down, 1 "
+                      "nose down, 2 left, 3 right, 4 upside down, 5 right side up); "
+                      "QGroundControl reads it to show them. 63: all six.",
+                 values={34: "Two side calibration", 38: "Three side calibration",
+                         63: "Six side calibration"}),
         ParamDef("SENS_BOARD_ROT", "INT32", 0, min=0, max=25, group=_SENS,
                  short="Board rotation",
                  long="How the flight controller is mounted in the vehicle (PX4 rotation enum, "

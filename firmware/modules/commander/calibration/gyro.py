@@ -5,9 +5,10 @@ until the first gyro has delivered :attr:`GyroCalibration.SAMPLES` of them; the 
 the offsets ``CAL_GYROn_[XYZ]OFF`` the sensors module subtracts, in the slot that holds (or is
 given) the gyro's device id.
 
-Still detection: the samples are also averaged in windows of a tenth of the count, and a
-window whose mean differs from the first window's by more than PX4's limit (0.6 deg/s on any
-axis, what a vehicle that is being moved shows and sensor noise averaged over a window does
+Still detection: the samples are also averaged in windows (a tenth of the count of the first
+gyro, the same time span for every gyro), and a window whose mean differs from the mean of
+the samples before it by more than PX4's limit (0.6 deg/s on any axis: what a vehicle being
+moved shows, and the noise of a window's mean, ~0.1 deg/s for the L3GD20's 47 samples, does
 not) means motion: "[cal] motion, retrying..", and the collection starts again, at most
 :attr:`GyroCalibration.MAX_TRIES` times before the calibration fails.
 """
@@ -40,19 +41,17 @@ SENSOR_TIMEOUT_US: Final = 1_000_000
 
 
 class _Accumulator:
-    """Sum and count of one gyro's samples, and its current window."""
+    """Sum and count of one gyro's samples, and of its current window."""
 
-    __slots__ = ("n", "ref", "sx", "sy", "sz", "wn", "wx", "wy", "wz")
+    __slots__ = ("n", "sx", "sy", "sz", "wn", "wx", "wy", "wz")
 
     def __init__(self) -> None:
         self.n = 0
         self.sx = self.sy = self.sz = 0.0
         self.wn = 0
         self.wx = self.wy = self.wz = 0.0
-        self.ref: tuple[float, float, float] | None = None
 
-    def add(self, x: float, y: float, z: float, window: int) -> bool:
-        """Add a sample; False when a completed window shows motion."""
+    def add(self, x: float, y: float, z: float) -> None:
         self.n += 1
         self.sx += x
         self.sy += y
@@ -61,17 +60,19 @@ class _Accumulator:
         self.wx += x
         self.wy += y
         self.wz += z
-        if self.wn < window:
-            return True
-        k = 1.0 / self.wn
-        mean = (self.wx * k, self.wy * k, self.wz * k)
+
+    def close_window(self) -> bool:
+        """End the window; False if its mean is off the mean of everything before it."""
+        wn, before = self.wn, self.n - self.wn
+        still = True
+        if wn and before:
+            kw, kb = 1.0 / wn, 1.0 / before
+            still = (abs(self.wx * kw - (self.sx - self.wx) * kb) <= MAX_DIFF_RAD_S
+                     and abs(self.wy * kw - (self.sy - self.wy) * kb) <= MAX_DIFF_RAD_S
+                     and abs(self.wz * kw - (self.sz - self.wz) * kb) <= MAX_DIFF_RAD_S)
         self.wn = 0
         self.wx = self.wy = self.wz = 0.0
-        if self.ref is None:
-            self.ref = mean
-            return True
-        r = self.ref
-        return all(abs(mean[i] - r[i]) <= MAX_DIFF_RAD_S for i in range(3))
+        return still
 
     def mean(self) -> tuple[float, float, float]:
         k = 1.0 / self.n
@@ -105,15 +106,16 @@ class GyroCalibration(Routine):
             return FAILED
         if self.last_sample_us < 0:
             self.last_sample_us = now_us
-        window = max(1, self.SAMPLES // 10)
-        still = True
         for i, samples in enumerate(self.gyros.drain()):
             a = self.acc[i]
             for s in samples:
-                if not a.add(float(s.x), float(s.y), float(s.z), window):
-                    still = False
+                a.add(float(s.x), float(s.y), float(s.z))
             if i == 0 and samples:
                 self.last_sample_us = now_us
+        still = True
+        if self.acc[0].wn >= max(1, self.SAMPLES // 10):  # windows in the first gyro's time
+            for a in self.acc:
+                still = a.close_window() and still
         if not still:
             self.tries += 1
             if self.tries >= self.MAX_TRIES:

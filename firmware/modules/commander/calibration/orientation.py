@@ -29,7 +29,12 @@ INVALID: Final = -4
 
 
 class OrientationDetector:
-    def __init__(self) -> None:
+    """``lenient`` (PX4's for the magnetometer, turned by hand): three times the still
+    threshold, still for 0.5 s."""
+
+    def __init__(self, lenient: bool = False) -> None:
+        self.thr2 = STILL_THR2 * (9.0 if lenient else 1.0)
+        self.still_us = 500_000 if lenient else STILL_TIME_US
         self.reset()
 
     def reset(self) -> None:
@@ -53,19 +58,19 @@ class OrientationDetector:
         for i in range(3):
             d = f[i] - self.ema[i]
             self.ema[i] += d * w
-            d2 = min(d * d, STILL_THR2 * 8.0)
+            d2 = min(d * d, self.thr2 * 8.0)
             self.disp[i] *= 1.0 - w
             if d2 > self.disp[i]:
                 self.disp[i] = d2
-        if all(v < STILL_THR2 for v in self.disp):
+        if all(v < self.thr2 for v in self.disp):
             if self.t_still < 0:
                 self.t_still = t_us
                 return REST
-            if t_us - self.t_still > STILL_TIME_US:
+            if t_us - self.t_still > self.still_us:
                 side = self.side()
                 self.t_still = -1
                 return INVALID if side < 0 else side
-        elif any(v > STILL_THR2 * 4.0 for v in self.disp) and self.t_still >= 0:
+        elif any(v > self.thr2 * 4.0 for v in self.disp) and self.t_still >= 0:
             self.t_still = -1
             return MOTION
         return NOTHING

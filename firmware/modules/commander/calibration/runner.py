@@ -6,11 +6,11 @@ own (``wq:lp_default``, every :data:`STEP_US`), so the commander keeps its 100 H
 failsafes and its acks while a calibration runs. The work item belongs to the commander
 module (its ``work_items``), so stopping the commander ends a calibration too.
 
-Command parameters as MAVLink defines them and PX4 reads them: param1 1 gyro, param5 1
-accelerometer (six sides), param5 2 level horizon; params 1 to 6 all 0
+Command parameters as MAVLink defines them and PX4 reads them: param1 1 gyro, param2 1
+magnetometer, param5 1 accelerometer (six sides), param5 2 level horizon; params 1 to 6 all 0
 cancel a running calibration (QGroundControl's Cancel button), and with none running are
-ACCEPTED (the end of an RC calibration, which QGC does itself). Other calibrations
-(magnetometer, baro, RC trim, airspeed, ESC, quick accel) are UNSUPPORTED. A new request while one runs is DENIED,
+ACCEPTED (the end of an RC calibration, which QGC does itself). Other calibrations (baro,
+RC trim, airspeed, ESC, quick accel) are UNSUPPORTED. A new request while one runs is DENIED,
 as PX4 denies every command during a calibration.
 """
 
@@ -75,6 +75,9 @@ def _routine(params7: list[int], orb: Any, params: Any, say: Say) -> Routine | N
     if p1 == 1:
         from firmware.modules.commander.calibration.gyro import GyroCalibration
         return GyroCalibration(orb, params, say)
+    if p2 == 1:
+        from firmware.modules.commander.calibration.mag import MagCalibration
+        return MagCalibration(orb, params, say)
     if p5 == 1:
         from firmware.modules.commander.calibration.accel import AccelCalibration
         return AccelCalibration(orb, params, say)
