@@ -141,7 +141,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                     say(f"  {name.upper() + ' (57600):':<28}{dev[name].pty_name}   "
                         f"hil://{name.upper()} (pyserial; TCP port {dev[name].tcp_port})")
             for b, h in cans.items():
-                say(f"  {b + ' (python-can, DroneCAN):':<28}can.Bus(interface='hil', "
+                say(f"  {b + ' (python-can):':<28}can.Bus(interface='hil', "
                     f"channel='{b}')   (TCP port {h.tcp_port}, {h.bitrate // 1000} kbit/s)")
             for name, spec in can_bind.items():
                 say(f"  {name + ' bound to:':<28}{spec}")

@@ -74,8 +74,6 @@ class UbloxServer:
                 if s is self.srv:
                     conn, _ = self.srv.accept()
                     self.conn = conn
-                    if self.garbage:
-                        conn.sendall(self.garbage)
                     continue
                 try:
                     data = s.recv(4096)
@@ -84,6 +82,9 @@ class UbloxServer:
                 if not data:
                     self.conn = None
                     continue
+                if not self.bytes_from_client and self.garbage:
+                    # noise on the line once the driver talks (and listens)
+                    s.sendall(self.garbage)
                 self.bytes_from_client += len(data)
                 self.gps.uart.receive(k.now_ns, self.gps.uart.config, data)
 
