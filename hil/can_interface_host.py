@@ -81,10 +81,18 @@ class QueueEndpoint(Endpoint):
 class TcpEndpoint(Endpoint):
     """A client of the host's TCP server (the plug-in in another process)."""
 
+    #: Bytes waiting for a client that reads slowly; beyond this, frames are dropped whole
+    #: (so the record stream never loses its alignment).
+    OUT_BUFFER_MAX = 1 << 20
+
     def __init__(self, conn: socket.socket, name: str) -> None:
         super().__init__(name)
         self.conn = conn
         self._buf = bytearray()
+        self._outbuf = bytearray()
+
+    def poll(self, host: CanHost) -> None:
+        self._flush()
 
     def read_ready(self, host: CanHost) -> None:
         try:
@@ -105,11 +113,21 @@ class TcpEndpoint(Endpoint):
         self.tx.extend(frames)
 
     def deliver(self, frame: WireFrame) -> None:
-        try:
-            self.conn.sendall(encode(frame))
-            self.frames_out += 1
-        except (BlockingIOError, InterruptedError):
+        if len(self._outbuf) >= self.OUT_BUFFER_MAX:
             self.dropped += 1  # the client does not read: drop, as a full USB buffer would
+            return
+        self._outbuf += encode(frame)
+        self.frames_out += 1
+        self._flush()
+
+    def _flush(self) -> None:
+        if not self._outbuf or self.closed:
+            return
+        try:
+            n = self.conn.send(self._outbuf)
+            del self._outbuf[:n]
+        except (BlockingIOError, InterruptedError):
+            pass
         except OSError:
             self.close()
 

@@ -162,3 +162,23 @@ def test_bitrate_mismatch_and_unknown_channel_are_clear_errors(can_rig, announce
         can.Bus(interface="hil", channel="CAN2")
     configs = can.detect_available_configs(interfaces=["hil"])
     assert {"interface": "hil", "channel": "CAN1", "port": can_rig.host.tcp_port} in configs
+
+
+def test_garbage_from_a_tcp_client_is_counted_and_dropped(can_rig):
+    """A client speaking nonsense costs it its bad records, not the emulator; its valid record
+    after them still reaches the bus."""
+    import socket
+
+    from hil.can_interface_wire import RECORD, WireFrame, encode
+
+    bad_before = can_rig.host.bad_records
+    sent_before = can_rig.orch.call("fmu", "can_stats", "CAN1")["host"]["sent"]
+    with socket.create_connection(("127.0.0.1", can_rig.host.tcp_port)) as sock:
+        garbage = bytes([9, 0xFF, 20, 0]) + bytes(RECORD.size - 4)   # kind 9, bad flags, DLC 20
+        ok = encode(WireFrame(1, 0x321, False, False, b"\x07"))
+        sock.sendall(garbage * 3 + ok)
+        can_rig.run_until(lambda: can_rig.host.bad_records >= bad_before + 3, 30,
+                          "the bad records to be counted")
+        can_rig.run_s(0.05)
+    assert can_rig.host.bad_records == bad_before + 3
+    assert can_rig.orch.call("fmu", "can_stats", "CAN1")["host"]["sent"] == sent_before + 1
