@@ -90,6 +90,12 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
             if bus not in ("CAN1", "CAN2"):
                 raise ValueError(f"--can: no CAN bus {bus!r} on the FMU (CAN1, CAN2)")
             parse_can_spec(spec)
+        from hil.bindings_uart import CONNECTORS
+
+        for name in uart_bind:
+            if name not in CONNECTORS:
+                raise ValueError(f"--uart: no connector {name!r} (one of "
+                                 f"{', '.join(CONNECTORS)})")
     except ValueError as exc:
         print(f"hil fly: {exc}", file=sys.stderr)
         return 2

@@ -11,9 +11,11 @@ import re
 
 import can
 import dronecan
+import pytest
 from dronecan.transport import Transfer
 
 from hil.bindings_can import BoundBus, parse_can_spec
+from hil.bindings_uart import UartBinding
 from hil.fly import main as fly_main
 
 from .conftest import FMU_NODE_STATUS_ID, VIRTUAL_CHANNEL
@@ -74,3 +76,7 @@ def test_fly_rejects_bad_can_and_uart_specs(capsys):
     assert fly_main(can=["CAN1=vcan0"], duration_s=0) == 2
     assert "<interface>:<channel>" in capsys.readouterr().err
     assert parse_can_spec("slcan:/dev/ttyACM0@115200") == ("slcan", "/dev/ttyACM0@115200")
+    assert fly_main(uart=["serial5=/dev/ttyUSB0"], duration_s=0) == 2
+    assert "no connector 'serial5'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="--uart gps=/dev/hil-no-such-device: cannot open"):
+        UartBinding("gps", "/dev/hil-no-such-device", "uart_gps", (9600, 8, "N", 1, 0), 500_000)
