@@ -26,7 +26,7 @@ from board.wiring import WORLD, Wire
 from hil.world.atmosphere import KELVIN_0C, isa_pressure_pa, isa_temperature_k
 from hil.world.magnetic import earth_field_ned_gauss
 from hil.world.truth import Truth, quat_from_euler
-from hil.worldlink import truth_record
+from hil.worldlink import TRUTH_FIELDS, truth_record
 
 __all__ = ["SIDE_ATTITUDES_DEG", "TRUTH_WIRE", "CalibrationJig", "SideTurner", "statustexts"]
 
@@ -36,6 +36,10 @@ Vec = tuple[float, float, float]
 
 #: the wire from the jig to the FMU's sensors (a lone board's orchestrator)
 TRUTH_WIRE = Wire((WORLD, "truth"), ("fmu", "truth"), "the calibration jig's attitude")
+
+#: the truth record's fields that follow the jig's attitude
+_ATTITUDE_FIELDS = tuple(TRUTH_FIELDS.index(k) for k in (
+    "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag_body_gauss"))
 
 #: (roll, pitch) in degrees that put each of PX4's sides down
 SIDE_ATTITUDES_DEG = {"down": (0.0, 0.0), "up": (180.0, 0.0), "back": (0.0, 90.0),
@@ -192,6 +196,15 @@ class CalibrationJig:
             vel_ned_m_s=(0.0, 0.0, 0.0), airspeed_m_s=0.0, diff_pressure_pa=0.0,
             battery_v=16.2, battery_a=0.5))
 
+    def _override(self, t_ns: int, world_rec: tuple) -> tuple:
+        """The world's truth record with the jig's attitude: specific force, rates,
+        quaternion, Euler angles and field; position, pressure, battery stay the world's."""
+        mine = self._truth(t_ns)
+        rec = list(world_rec)
+        for i in _ATTITUDE_FIELDS:
+            rec[i] = mine[i]
+        return tuple(rec)
+
     def run_until(self, t_ns: int) -> None:
         if self.world is not None:
             self.world.wired = self.wired
@@ -199,7 +212,7 @@ class CalibrationJig:
             for rec in self.world.outputs(t_ns):
                 if rec[0] == "truth":
                     self._t_ns = rec[1]
-                    rec = ("truth", rec[1], self._truth(rec[1]))
+                    rec = ("truth", rec[1], self._override(rec[1], rec[2]))
                 self._out.append(rec)
         else:
             while self._next_ns <= t_ns:

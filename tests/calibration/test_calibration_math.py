@@ -24,6 +24,7 @@ from hil.calibration_jig import CalibrationJig
 
 ACC = TRUTH_KEYS.index("accel_body_m_s2")
 GYRO = TRUTH_KEYS.index("gyro_rad_s")
+PRESSURE = TRUTH_KEYS.index("pressure_pa")
 
 
 def test_fit_axis_recovers_offset_and_scale():
@@ -80,3 +81,51 @@ def test_jig_turn_rates_integrate_to_the_turn():
     angle = sum(r[GYRO][1] for r in recs) * 1e-3
     assert angle == pytest.approx(math.pi / 2, rel=0.01)
     assert recs[-1][ACC] == pytest.approx((G0, 0.0, 0.0), abs=1e-9)
+
+
+class _StubWorld:
+    """The port interface of hil.worldlink.WorldPorts, with a level vehicle's truth."""
+
+    ports = ("truth", "battery", "esc1")
+
+    def __init__(self):
+        self.wired = None
+        self.inputs = []
+        self.t_ns = 0
+        self._out = []
+
+    def run_until(self, t_ns):
+        while self.t_ns + 1_000_000 <= t_ns:
+            self.t_ns += 1_000_000
+            rec = [None] * len(TRUTH_KEYS)
+            rec[TRUTH_KEYS.index("t_ns")] = self.t_ns
+            rec[ACC] = (0.0, 0.0, -G0)
+            rec[GYRO] = (0.0, 0.0, 0.0)
+            rec[PRESSURE] = 95_000.0
+            self._out.append(("truth", self.t_ns, tuple(rec)))
+        self._out.append(("battery", self.t_ns, (16.0, 1.0)))
+
+    def outputs(self, until_ns):
+        out, self._out = self._out, []
+        return out
+
+    def input(self, port, t_ns, payload):
+        self.inputs.append((port, t_ns, payload))
+
+
+def test_jig_over_a_world_replaces_only_the_attitude():
+    """Wrapping the world (whole system): the world keeps stepping and its other ports pass
+    through; its truth records leave with the jig's attitude, at the world's own times."""
+    world = _StubWorld()
+    jig = CalibrationJig(world=world)
+    assert set(jig.ports) == set(world.ports)
+    jig.turn_to_side("left", duration_s=0.01)
+    jig.run_until(20_000_000)
+    out = jig.outputs(0)
+    truths = [r for r in out if r[0] == "truth"]
+    assert [r[1] for r in truths] == [i * 1_000_000 for i in range(1, 21)]
+    assert truths[-1][2][ACC] == pytest.approx((0.0, G0, 0.0), abs=1e-9)
+    assert all(r[2][PRESSURE] == 95_000.0 for r in truths)  # the world's, not the jig's
+    assert ("battery", 20_000_000, (16.0, 1.0)) in out
+    jig.input("esc1", 5, (1500, 2500))
+    assert world.inputs == [("esc1", 5, (1500, 2500))]
