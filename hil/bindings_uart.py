@@ -8,13 +8,14 @@ and the device takes its place), ``telem1``/``telem2`` (instead of their host pt
 ``rfc2217://host:port``, ``hil://...``.
 
 The emulated wire carries line settings, a real port has its own: bytes the board transmits
-are written to the port, and when the firmware changes the UART's baud rate (the GPS driver's
-baud scan) the port is set to it (``Serial.baudrate``; a socket ignores it). Bytes from the
-port enter the board at the virtual time of the poll (between quanta, every ``poll_every``)
-with the UART's present settings, at most as many per poll as the line carries at that baud
-in that time (a real device cannot send faster); the rest wait, up to ``HOST_BUFFER_BYTES``,
-beyond which they are counted (``dropped``) and dropped. What the bytes mean is the firmware's
-business: garbage is what its parsers count and skip, as on a real port.
+are written to the port, and when the firmware changes the UART's settings (the GPS driver's
+baud scan) the port is set to them (``Serial.baudrate`` ...; a socket ignores them). Bytes from
+the port enter the board at the virtual time of the poll (between quanta, every
+``poll_every``: 2 quanta, 1 ms, in ``hil fly``) with the UART's present settings, at most as
+many per poll as the line carries at that baud in that time (a real device cannot send
+faster); the rest wait, up to ``HOST_BUFFER_BYTES``, beyond which they are counted
+(``dropped``) and dropped. What the bytes mean is the firmware's business: garbage is what its
+parsers count and skip, as on a real port.
 
 A port that fails (device unplugged, socket closed by the peer, pty closed) is reported once
 and closed; the emulated UART stays, with nothing on the line, and the emulator keeps running.
@@ -182,7 +183,9 @@ def add_uart_bindings(cfg: Any, hub: Any, devices: dict[str, Any], wiring: list[
             kw["exclude"] = tuple(dict.fromkeys((*kw.get("exclude", ()), "ublox_m8")))
             kw["host_ports"] = tuple(dict.fromkeys((*kw.get("host_ports", ()), "gps")))
         wport = f"uart_{name}"
-        binding = UartBinding(name, url, wport, conn.config, cfg.quantum_ns)
+        # polled every 2 quanta (1 ms): bytes split across polls keep gaps far below a
+        # protocol's frame gap (S.BUS: 3 ms), at a syscall per poll
+        binding = UartBinding(name, url, wport, conn.config, cfg.quantum_ns, poll_every=2)
         hub.add(binding)
         bindings[name] = binding
         target = (conn.board, conn.port)
