@@ -17,8 +17,10 @@ Ports that leave the board (see board/wiring.py):
   the uavcan driver enables it. ``uavcan_nodes`` plugs DroneCAN nodes into CAN1: an int is a
   plain node with that ID (:class:`peripherals.uavcan_node.UavcanNode`: NodeStatus at 1 Hz,
   GetNodeInfo), ``"gnss"`` / ``"mag"`` a GNSS receiver (Fix2 at 5 Hz) / compass node
-  (:mod:`peripherals.dronecan`) fed by the world's truth, with ``@N`` a configured node ID
-  (``"gnss@0"``, the default, asks the FMU's allocator for one). The CAN hardware is
+  (:mod:`peripherals.dronecan`) fed by the world's truth, ``"esc1"`` .. ``"esc4"`` ESC nodes
+  (RawCommand in, esc.Status out) whose motor commands leave on the ``pwm`` ports
+  ``can_esc1..4``, with ``@N`` a configured node ID (``"gnss@0"``, the default, asks the FMU's
+  allocator for one). The CAN hardware is
   built on first use (python-can takes ~0.2 s to import): a board whose firmware never touches
   CAN and has no node on it pays nothing, at start or per quantum.
 * ``udp_in`` / ``udp_out``: the FMU's network interface as PX4 SITL has one, carrying whole
@@ -224,11 +226,20 @@ class FmuV2Board(Board):
 
             return UavcanNode(self.kernel, bus, spec, name=f"uavcan_node{spec}", seed=self.seed)
         kind, _, nid = str(spec).partition("@")
-        if kind not in ("gnss", "mag") or (nid and not nid.isdigit()):
-            raise ValueError(f"uavcan_nodes: {spec!r} is not a node ID, 'gnss[@id]' or "
-                             f"'mag[@id]'")
+        esc = kind[3:] if kind.startswith("esc") else ""
+        if (kind not in ("gnss", "mag") and esc not in ("1", "2", "3", "4")) or (
+                nid and not nid.isdigit()):
+            raise ValueError(f"uavcan_nodes: {spec!r} is not a node ID, 'gnss[@id]', "
+                             f"'mag[@id]' or 'esc1'..'esc4[@id]'")
         node_id = int(nid or 0)
         name = f"can_{kind}{nid and '@' + nid}"
+        if esc:
+            from peripherals.dronecan.esc import EscNode
+
+            # the motor is in the world: a pulse train equivalent to the command, on can_escN
+            return EscNode(self.kernel, bus, int(esc) - 1, node_id, name=name, seed=self.seed,
+                           rng=self._rng(name), output=self.expose_output(f"can_{kind}", "pwm"),
+                           supply_v=lambda: self._power_v)
         if kind == "gnss":
             from peripherals.dronecan.gnss import GnssNode
 

@@ -65,6 +65,8 @@ class DronecanNode:
     """A node plugged into ``bus``: NodeStatus every ``period_ns`` from ``first_ns``;
     ``node_id`` 0 asks an allocator for one first."""
 
+    #: message data types the node's firmware subscribes to (its acceptance filter)
+    ACCEPT: frozenset[int] = frozenset({NODE_STATUS_DTID, ALLOCATION_DTID})
     #: what GetNodeInfo reports (the product's reverse-domain name, versions)
     HW_NAME = "org.hil.node"
     SW_VERSION = (1, 0)
@@ -89,7 +91,7 @@ class DronecanNode:
         self.ctrl.on_receive(self._rx)
         self.ctrl.on_tx_complete(self._tx_done)
         self.txq = TxQueue(self.ctrl)
-        self.rxa = Reassembler(node_id)
+        self.rxa = Reassembler(node_id, self.ACCEPT)
         self.tids = TransferIds()
         self.silent = False
         #: NodeStatus frames of other nodes received, per source node ID: (count, t_ns, uptime)

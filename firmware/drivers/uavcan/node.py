@@ -114,6 +114,18 @@ class UavcanModule(WorkItemModule):
         self._in_bus_off = False
         self._last_pub_us = -PUBLISH_PERIOD_US
         self._last_state = -1
+        self._controls_sub: Any = None
+        self._armed_sub: Any = None
+        self._armed = False
+        if mode >= 3:  # ESCs on CAN: RawCommand from the FMU's own mixer (esc_output.py)
+            from firmware.drivers.uavcan.esc_output import COMMAND_INTERVAL_US, EscOutput
+
+            self.stack.esc = EscOutput(int(self.param("UAVCAN_EC_MIN")),
+                                       int(self.param("UAVCAN_EC_MAX")))
+            assert self.work_item is not None
+            self._controls_sub = self.subscribe_callback(
+                self.work_item, "actuator_controls_0", interval_us=COMMAND_INTERVAL_US)
+            self._armed_sub = self.subscribe("actuator_armed")
         self._pub = self.advertise("can_interface_status")
         self._msg = self.platform.orb.new("can_interface_status")
         ctrl.on_receive(self._rx_isr)
@@ -169,12 +181,45 @@ class UavcanModule(WorkItemModule):
             self.frames_rx += 1
             stack.receive(q.popleft(), now)
         stack.tick(now)
+        if self._controls_sub is not None:
+            self._esc_output(now)
         state = _STATES[self.ctrl.state]
         if self._in_bus_off and state != 2:
             self._in_bus_off = False
             self.recoveries += 1
         if state != self._last_state or now - self._last_pub_us >= PUBLISH_PERIOD_US:
             self._publish(now, state)
+
+    def _esc_output(self, now: int) -> None:
+        a = self._armed_sub.update()
+        if a is not None:
+            self._armed = bool(a.armed) and not a.lockdown and not a.manual_lockdown
+        c = self._controls_sub.update()
+        if c is None:
+            return
+        esc = self.stack.esc
+        raw = esc.command(c.control, self._armed)
+        if raw and self.stack.send_esc_command(raw, now):
+            esc.commands_tx += 1
+            esc.last_raw = raw
+
+    def custom_command(self, args: list[str]) -> int:
+        """``uavcan mixer FILE`` (what ``mixer load /dev/uavcan/esc FILE`` calls): the CAN ESC
+        output's mixer, with UAVCAN_ENABLE 3."""
+        if args and args[0] == "mixer" and len(args) == 2:
+            esc = self.stack.esc if self.stack is not None else None
+            if esc is None:
+                self.print("uavcan: no CAN ESC output (UAVCAN_ENABLE is not 3)")
+                return 1
+            try:
+                text = self.system.resolve_path(args[1]).read_text(encoding="latin-1")
+                n = esc.load_mixer(text, args[1])
+            except (OSError, ValueError) as exc:
+                self.print(f"uavcan: mixer {args[1]}: {exc}")
+                return 1
+            self.info(f"ESC mixer {args[1]}: {n} outputs")
+            return 0
+        return super().custom_command(args)
 
     def nodes_online(self, now_us: int) -> list[int]:
         return list(self.stack.nodes_online()) if self.stack is not None else []
@@ -225,6 +270,15 @@ class UavcanModule(WorkItemModule):
             lines.append(f"node {n.node_id}: {on}, {name} sw {n.sw_version[0]}."
                          f"{n.sw_version[1]}, uptime {n.uptime_s} s, health {n.health}, "
                          f"last NodeStatus {(now - n.last_us) / 1e6:.1f} s ago")
+        if s.esc is not None:
+            e = s.esc
+            lines.append(f"ESC output: mixer {e.mixer_path or 'none'}, {e.commands_tx} "
+                         f"RawCommands, last {e.last_raw}")
+            for idx, r in sorted(e.reports.items()):
+                lines.append(f"esc {idx}: node {r.node_id}, {r.rpm} rpm, {r.voltage_v:.1f} V, "
+                             f"{r.current_a:.1f} A, {r.temperature_c:.0f} C, {r.power_pct} %, "
+                             f"errors {r.error_count}, status {r.count}, "
+                             f"{(now - r.last_us) / 1e6:.1f} s ago")
         if s.gnss is not None or s.mag is not None:
             lines.append(f"sensors: GNSS fixes {s.gnss.fixes if s.gnss else '-'}, "
                          f"mag samples {s.mag.samples if s.mag else '-'}")

@@ -33,4 +33,11 @@ PARAMS: tuple[ParamDef, ...] = (
              long="1: uavcan.equipment.ahrs.MagneticFieldStrength2 from CAN compass nodes is "
                   "published as sensor_mag (device ID bus type UAVCAN).",
              values={0: "Disabled", 1: "Enabled"}),
+    ParamDef("UAVCAN_EC_MIN", "INT32", 1, min=0, max=8191, group=_G, reboot_required=True,
+             short="CAN ESC minimum command",
+             long="RawCommand value of a mixer output at -1 while armed (UAVCAN_ENABLE 3): the "
+                  "CAN counterpart of PWM_MIN (0 stops the motor; 8191 is full throttle)."),
+    ParamDef("UAVCAN_EC_MAX", "INT32", 8191, min=1, max=8191, group=_G, reboot_required=True,
+             short="CAN ESC maximum command",
+             long="RawCommand value of a mixer output at +1 (UAVCAN_ENABLE 3)."),
 )

@@ -20,6 +20,7 @@ import can
 
 from firmware.drivers.uavcan.allocator import Allocator
 from firmware.drivers.uavcan.bridges import GnssBridge, MagBridge
+from firmware.drivers.uavcan.esc_output import EscOutput
 from firmware.lib.uavcan.ids import PRIORITY_DEFAULT
 from firmware.lib.uavcan.transfer import Reassembler, RxTransfer, TransferIds, encode, types
 from firmware.lib.uavcan.txqueue import TxQueue
@@ -33,6 +34,10 @@ ALLOCATION_DTID: Final = 1
 FIX2_DTID: Final = 1063
 AUXILIARY_DTID: Final = 1061
 MAG2_DTID: Final = 1002
+RAW_COMMAND_DTID: Final = 1030
+ESC_STATUS_DTID: Final = 1034
+#: RawCommand goes out ahead of the housekeeping (libuavcan's "fast" priority band)
+PRIORITY_ESC: Final = 8
 OFFLINE_TIMEOUT_US: Final = 3_000_000
 NODE_STATUS_PERIOD_US: Final = 1_000_000
 NODE_INFO_RETRY_US: Final = 1_000_000
@@ -80,6 +85,7 @@ class DronecanStack:
         self.nodes: dict[int, NodeEntry] = {}
         self.allocator = Allocator(node_id, self._occupied) if dna else None
         self.gnss = GnssBridge(platform, gps_first_instance) if sub_gps else None
+        self.esc: EscOutput | None = None
         self.mag = MagBridge(platform) if sub_mag else None
         self.node_status_rx = 0
         self.node_info_answered = 0
@@ -153,6 +159,13 @@ class DronecanStack:
             self.gnss.on_auxiliary(tr.source, p)
         elif dtid == MAG2_DTID and self.mag is not None:
             self.mag.on_mag2(tr.source, p, now_us)
+        elif dtid == ESC_STATUS_DTID and self.esc is not None:
+            self.esc.on_status(tr.source, p, now_us)
+
+    def send_esc_command(self, raw: list[int], now_us: int) -> bool:
+        """One RawCommand; a command not out within 5 ms is stale and dropped."""
+        m = types().uavcan.equipment.esc.RawCommand(cmd=raw)
+        return self.send(m, RAW_COMMAND_DTID, now_us, now_us + 5_000, priority=PRIORITY_ESC)
 
     def _on_node_status(self, src: int, p: Any, now_us: int) -> None:
         self.node_status_rx += 1

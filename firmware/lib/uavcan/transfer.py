@@ -128,14 +128,18 @@ class _Pending:
 
 class Reassembler:
     """Frames in, complete transfers out, for a node whose ID is ``node_id`` (0 while it has
-    none: it still hears messages and anonymous messages, but no service is addressed to it).
+    none: it still hears messages and anonymous messages, but no service is addressed to it),
+    keeping the messages whose data type is in ``accept`` (all when None).
 
     :meth:`push` returns the decoded :class:`RxTransfer` when a frame completes one, else None.
     ``errors`` counts what was dropped, by cause (:data:`ERROR_KINDS`).
     """
 
-    def __init__(self, node_id: int = 0) -> None:
+    def __init__(self, node_id: int = 0, accept: frozenset[int] | None = None) -> None:
         self.node_id = node_id
+        #: message data type IDs this node wants (its acceptance filter: others are skipped
+        #: before any decoding, counted in ``not_for_us``); None takes every message
+        self.accept = accept
         self.frames = 0
         self.transfers = 0
         self.not_for_us = 0
@@ -163,6 +167,9 @@ class Reassembler:
             if cid.dest != self.node_id:
                 self.not_for_us += 1
                 return None
+        elif self.accept is not None and cid.source and cid.data_type_id not in self.accept:
+            self.not_for_us += 1
+            return None
         tail = data[-1]
         key = msg.arbitration_id & 0x1FFFFFFF
         frame = dtransport.Frame(key, data)
