@@ -22,14 +22,14 @@ motor measurement.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Final
+from typing import Any, ClassVar, Final
 
 import numpy as np
 
 from board.can import CanBus
 from board.kernel import PRIO_HW, Kernel
 from firmware.lib.uavcan.transfer import RxTransfer, types
-from peripherals.dronecan.node import DronecanNode
+from peripherals.dronecan.node import ALLOCATION_DTID, NODE_STATUS_DTID, DronecanNode
 
 __all__ = ["ESC_STATUS_DTID", "EscNode", "RAW_COMMAND_DTID"]
 
@@ -51,7 +51,8 @@ OutputFn = Callable[[int, Any], None]
 class EscNode(DronecanNode):
     """ESC number ``esc_index`` on CAN: ``EscNode(kernel, bus, esc_index, node_id=0)``."""
 
-    ACCEPT = DronecanNode.ACCEPT | {RAW_COMMAND_DTID}
+    ACCEPT: ClassVar[frozenset[int]] = frozenset({NODE_STATUS_DTID, ALLOCATION_DTID,
+                                                  RAW_COMMAND_DTID})
     HW_NAME = "org.hil.esc"
     SW_VERSION = (2, 1)
 

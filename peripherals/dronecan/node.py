@@ -29,7 +29,7 @@ has an ID) and :meth:`_on_transfer` (transfers the base does not handle).
 from __future__ import annotations
 
 import hashlib
-from typing import Any, Final
+from typing import Any, ClassVar, Final
 
 import numpy as np
 
@@ -66,7 +66,7 @@ class DronecanNode:
     ``node_id`` 0 asks an allocator for one first."""
 
     #: message data types the node's firmware subscribes to (its acceptance filter)
-    ACCEPT: frozenset[int] = frozenset({NODE_STATUS_DTID, ALLOCATION_DTID})
+    ACCEPT: ClassVar[frozenset[int]] = frozenset({NODE_STATUS_DTID, ALLOCATION_DTID})
     #: what GetNodeInfo reports (the product's reverse-domain name, versions)
     HW_NAME = "org.hil.node"
     SW_VERSION = (1, 0)
