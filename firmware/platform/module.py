@@ -297,6 +297,7 @@ FMU_V2_MODULES: Final[dict[str, str]] = {
     "land_detector": "firmware.modules.land_detector:LandDetectorModule",
     "uavcan": "firmware.drivers.uavcan:UavcanModule",
     "failure_injector": "firmware.modules.failure_injector:FailureInjectorModule",
+    "load_mon": "firmware.modules.load_mon:LoadMonModule",
 }
 
 

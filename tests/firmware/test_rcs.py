@@ -78,7 +78,7 @@ def test_rcs_no_airframe_starts_no_vehicle(platform, sd):
     assert status == 0
     assert "[init] SYS_AUTOSTART 0: no airframe" in text
     assert b.running == {"mpu6000", "sensors", "logger", "dataman", "rc_update",
-                         "battery_status", "failure_injector"}
+                         "battery_status", "failure_injector", "load_mon"}
     assert b.shell.env["VEHICLE_TYPE"] == "none"
     assert text.rstrip().endswith("[init] startup done")
 
@@ -90,7 +90,7 @@ def test_rcs_quad_x_starts_mc_apps_and_reports_missing_modules(platform, sd):
     assert "[init] airframe: 4001_quad_x" in text
     assert b.running == {"mpu6000", "sensors", "commander", "px4io", "ekf2", "mc_att_control",
                          "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
-                         "mc_rate_control", "failure_injector"}
+                         "mc_rate_control", "failure_injector", "load_mon"}
     env = b.shell.env
     assert (env["VEHICLE_TYPE"], env["MIXER"], env["PWM_OUT"]) == ("mc", "quad_x", "1234")
     assert env["MIXER_FILE"] == "/etc/mixers/quad_x.main.mix"

@@ -28,7 +28,14 @@ PATHS = [b"", b"/", b"/fs/microsd", b"/fs/microsd/log", b"log/2024-01-01/00_00_0
          b"@MAV_LOG/2024-01-01/00_00_00.ulg", b"@PARAM", b"@PARAM/param.pck",
          b"@PARAM/param.pck?withdefaults=1", b"@PARAM/other", b"../outside.txt",
          b"/../../outside.txt", b"link_out", b"/etc/passwd", b"\xff\xfe\x00", b"a\x00b",
-         b"small.txt\x00moved.txt", b"x" * 239, b"/fs/microsd/" + "\u00e9".encode() * 50]
+         b"small.txt\x00moved.txt", b"x" * 239, b"/fs/microsd/" + "\u00e9".encode() * 50,
+         b"/etc/extras", b"etc/extras/", b"/etc/extras/parameters.json",
+         b"/etc/extras/component_general.json.xz", b"/etc/extras/nope.json",
+         b"/etc/extras/../../outside.txt", b"etc/extrasx", b"/etc/extras/parameters.json\x00x"]
+#: the component metadata folder's virtual files (what the link serves is built from the
+#: parameter declarations; here any bytes do)
+EXTRAS = {"component_general.json": b'{"version":1}', "component_general.json.xz": b"\xfd7z",
+          "parameters.json": bytes(range(256)) * 3}
 OPCODES = list(range(0, 17)) + [srv.OP_ACK, srv.OP_NAK, 200, 255]
 OFFSETS = [0, 1, 5, 10, 239, 3000, srv.MAX_FILE_BYTES, srv.MAX_FILE_BYTES + 1, 0xFFFFFFFF]
 
@@ -110,7 +117,7 @@ def sandbox(tmp_path_factory):
 def test_server_answers_every_request_once_and_stays_on_the_card(sandbox, reqs):
     sd = _seed(sandbox)
     before = _outside(sandbox)
-    server = srv.FtpServer(sd, _Params())
+    server = srv.FtpServer(sd, _Params(), lambda: EXTRAS)
     for i, req in enumerate(reqs):
         reply = server.handle(req, i * 1000)
         if reply is None:   # a burst started: its first packet is the reply

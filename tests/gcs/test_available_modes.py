@@ -1,5 +1,6 @@
-"""AVAILABLE_MODES / CURRENT_MODE / AVAILABLE_MODES_MONITOR as PX4 1.15 sends them, against a
-booted FMU with the commander over its UDP link (pymavlink with the development dialect)."""
+"""AVAILABLE_MODES / CURRENT_MODE / AVAILABLE_MODES_MONITOR as PX4 1.15 sends them, and
+SYS_STATUS's load from cpuload, against a booted FMU with the commander over its UDP link
+(pymavlink with the development dialect)."""
 
 import pytest
 
@@ -106,3 +107,17 @@ def test_monitor_only_after_the_set_of_modes_changed(vehicle):
     mark = gcs.mark()
     gcs.step(3.5)
     assert {m.seq for m in gcs.messages("AVAILABLE_MODES_MONITOR", mark)} == {2}
+
+
+def test_sys_status_load_is_cpuload_in_permille(vehicle):
+    """SYS_STATUS.load is load_mon's cpuload (PX4), not a figure of the link's own."""
+    gcs = vehicle.gcs
+    gcs.step(1.0)
+    before = vehicle.topic("cpuload")["load"]
+    assert 0.0 < before < 1.0
+    mark = gcs.mark()
+    ack = gcs.command_long(mav.MAV_CMD_REQUEST_MESSAGE, [mav.MAVLINK_MSG_ID_SYS_STATUS])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
+    m = gcs.wait_message("SYS_STATUS", since=mark)
+    after = vehicle.topic("cpuload")["load"]
+    assert m.load in {round(before * 1000), round(after * 1000)}

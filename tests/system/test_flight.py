@@ -10,12 +10,14 @@ from __future__ import annotations
 import fcntl
 import filecmp
 import pickle
+import re
 
 import numpy as np
 import pytest
 import pyulog
 
 from hil.accuracy import TruthSample, estimator_accuracy
+from firmware.version import os_version_word, version_word
 from hil.flight import FlightConfig, fly
 
 pytestmark = pytest.mark.slow
@@ -81,6 +83,27 @@ def test_no_estimator_failure_and_outputs_in_range(flight):
     for ch in range(4):
         values = out[f"output[{ch}]"]
         assert values.min() >= 900 and values.max() <= 2000, ch
+
+
+def test_log_has_flight_review_info_keys_and_cpuload(flight):
+    """The build's info keys Flight Review reads (as pyulog's ulog_info decodes them), and
+    load_mon's cpuload at 2 Hz with the modelled load."""
+    log = pyulog.ULog(flight["log"], ["cpuload"])
+    info = log.msg_info_dict
+    assert re.fullmatch(r"[0-9a-f]{40}", info["ver_sw"])
+    assert info["ver_sw_release"] == version_word("fmu-hil 0.1.0")
+    assert info["sys_name"] == "PX4" and info["ver_hw"] == "PX4_FMU_V2"
+    assert info["sys_os_name"] == "NuttX" and info["sys_os_ver"] == "7.10.0"
+    assert info["sys_os_ver_release"] == os_version_word()
+    assert info["sys_toolchain"] == "CPython" and re.fullmatch(r"3\.\d+",
+                                                                info["sys_toolchain_ver"])
+    assert info["sys_mcu"].startswith("STM32F42") and re.fullmatch(r"[0-9A-F]{24}",
+                                                                     info["sys_uuid"])
+    cpu = log.get_dataset("cpuload").data
+    dt = np.diff(cpu["timestamp"])
+    assert len(cpu["timestamp"]) > 10 and np.all(dt == 500_000)
+    assert np.all((cpu["load"] > 0.05) & (cpu["load"] < 1.0))
+    assert np.all(np.isnan(cpu["ram_usage"]))
 
 
 def test_same_seed_gives_a_byte_identical_log(flight, tmp_path_factory):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
@@ -25,27 +26,40 @@ from firmware.modules.logger.profiles import LoggedTopic, get_profile
 from firmware.modules.logger.ulog import UlogError, UlogWriter, formats_for
 from firmware.platform.uorb import ORB_MULTI_MAX_INSTANCES, Subscription, SubscriptionInterval
 from firmware.platform.workqueue import WorkItem
+from firmware.version import NUTTX_VERSION, board_uid, os_version_word, software_hash, version_word
 
 if TYPE_CHECKING:
     from firmware.platform import Platform
 
-__all__ = ["DEFAULT_INFO", "DEFAULT_UTC_EPOCH_S", "Logger", "SdWriteBuffer", "log_path_for"]
+__all__ = ["DEFAULT_INFO", "DEFAULT_UTC_EPOCH_S", "Logger", "SdWriteBuffer", "log_path_for",
+           "version_info"]
 
 #: 2024-01-01T00:00:00Z: the emulated RTC's time at boot when nothing better is known
 DEFAULT_UTC_EPOCH_S = 1_704_067_200
 
+def version_info(version: str = "fmu-hil 0.1.0", hw_arch: str = "PX4_FMU_V2",
+                 git_hash: str | None = None, board_name: str = "px4_fmu-v2") -> dict[str, Any]:
+    """The info messages PX4's logger writes about the build (``write_version``), which Flight
+    Review shows: software hash and release word, hardware, OS and its release word, toolchain,
+    MCU and its unique ID (see :mod:`firmware.version` for what each is here and why). Fixed
+    for a version and board, so the same seed still gives the same bytes."""
+    return {
+        "sys_name": "PX4",
+        "ver_hw": hw_arch,
+        "ver_sw": software_hash(version, git_hash),
+        "ver_sw_release": (version_word(version), "uint32_t"),
+        "sys_os_name": "NuttX",
+        "sys_os_ver": ".".join(str(n) for n in NUTTX_VERSION),
+        "sys_os_ver_release": (os_version_word(), "uint32_t"),
+        "sys_toolchain": "CPython",
+        "sys_toolchain_ver": f"{sys.version_info.major}.{sys.version_info.minor}",
+        "sys_mcu": "STM32F42x, rev. 3",
+        "sys_uuid": board_uid(board_name).hex().upper(),
+    }
+
+
 #: info messages of every file; values are str/int/float or (value, ulog type name)
-DEFAULT_INFO: dict[str, Any] = {
-    "sys_name": "PX4",
-    "ver_hw": "PX4_FMU_V2",
-    "ver_sw": "fmu-hil",
-    "ver_sw_release": (0, "uint32_t"),
-    "sys_os_name": "NuttX",
-    "sys_mcu": "STM32F42x, rev. 3",
-    "sys_toolchain": "fmu-hil",
-    "sys_uuid": "000000000000000000000000",
-    "time_ref_utc": 0,
-}
+DEFAULT_INFO: dict[str, Any] = version_info() | {"time_ref_utc": 0}
 
 ARMING_STATE_ARMED = 2  # PX4 vehicle_status.arming_state when armed
 

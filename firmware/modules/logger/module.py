@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from firmware.modules.logger.logger import Logger
+from firmware.modules.logger.logger import Logger, version_info
 from firmware.platform.module import ModuleBase, ModuleError
 from firmware.platform.uorb import Subscription
 
@@ -55,8 +55,8 @@ class LoggerModule(ModuleBase):
         log_root.mkdir(parents=True, exist_ok=True)
         if "sensor_gps" in self.platform.orb.registry.topics:
             self._gps = Subscription(self.platform.orb, "sensor_gps")
-        info = {"sys_name": "PX4", "ver_hw": self.system.hw_arch,
-                "ver_sw": self.system.version}
+        system = self.system
+        info = version_info(system.version, system.hw_arch, system.git_hash, system.board_name)
         self.logger = Logger(
             self.platform, log_root, profile, "arm" if mode_param == 0 else "boot",
             params_provider=(lambda: dict(params.values)) if params is not None else None,

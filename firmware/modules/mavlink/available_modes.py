@@ -117,7 +117,8 @@ class AvailableModesService:
         """REQUEST_MESSAGE(AVAILABLE_MODES): the MAV_RESULT (PX4: DENIED if nothing sent)."""
         if not math.isfinite(index_param):
             return mav.MAV_RESULT_DENIED
-        index = round(index_param)
+        # C's roundf (halves away from zero), as PX4 rounds param2
+        index = int(math.copysign(math.floor(abs(index_param) + 0.5), index_param))
         if index == 0:
             for i, nav_state in enumerate(self.valid, start=1):
                 self.inst.send(self._mode_message(i, nav_state))

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from firmware.modules.mavlink.dialect import mav
 from firmware.modules.mavlink.streams import MAX_INTERVAL_US
+from firmware.version import board_uid, os_version_word, software_hash, version_word
 
 if TYPE_CHECKING:
     from firmware.modules.mavlink.instance import MavlinkInstance
@@ -45,19 +46,15 @@ _GLOBAL_FRAMES = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_RELATIVE_
                             mav.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
 
 
-def _version_word(version: str) -> int:
-    """``"fmu-hil 1.2.3"`` -> PX4's (major, minor, patch, FIRMWARE_VERSION_TYPE_OFFICIAL)."""
-    nums = [int(x) for x in version.split()[-1].split(".")[:3] if x.isdigit()] + [0, 0, 0]
-    return (nums[0] << 24) | (nums[1] << 16) | (nums[2] << 8) | 255
-
-
 def autopilot_version(inst: MavlinkInstance) -> Any:
     system = inst.system
-    git = (system.git_hash or "").encode()[:8].ljust(8, b"\0")
-    uid = int.from_bytes(system.board_name.encode()[:8].ljust(8, b"\0"), "little")
+    # PX4: the first 16 hex digits of the software hash as a little-endian uint64
+    sw = software_hash(system.version, system.git_hash)
+    git = int(sw[:16], 16).to_bytes(8, "little")
+    uid = int.from_bytes(board_uid(system.board_name)[:8], "little")
     return mav.MAVLink_autopilot_version_message(
-        CAPABILITIES, _version_word(system.version), _version_word(system.version),
-        0x070A00FF, 2, list(git), list(git), [0] * 8, VENDOR_ID, PRODUCT_ID, uid)
+        CAPABILITIES, version_word(system.version), version_word(system.version),
+        os_version_word(), 2, list(git), list(git), [0] * 8, VENDOR_ID, PRODUCT_ID, uid)
 
 
 PROTOCOL_VERSION_ID, PROTOCOL_VERSION_CRC_EXTRA = 300, 217

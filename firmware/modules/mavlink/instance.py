@@ -100,8 +100,6 @@ class MavlinkInstance(WorkItem):
         self._telem_pub = module.advertise("telemetry_status", index) if index < 4 else None
         self._telem = module.platform.orb.new("telemetry_status")
         self._busy_ns = 0
-        self._run_ns_window = [0, 0]  # busy ns, elapsed us since window start
-        self._load = 0
         # services (import here: they need this class's API, not the other way round)
         from firmware.modules.mavlink.available_modes import AvailableModesService
         from firmware.modules.mavlink.commands import CommandService
@@ -174,7 +172,12 @@ class MavlinkInstance(WorkItem):
         return self._udp is not None and not self._udp.rx_datagrams
 
     def load_permille(self) -> int:
-        return self._load
+        """SYS_STATUS ``load``: ``cpuload.load`` in permille, as PX4 (0 before load_mon's first
+        message or without load_mon)."""
+        cpu = self.latest("cpuload")
+        if cpu is None or not 0.0 <= cpu.load <= 1.0:
+            return 0
+        return round(cpu.load * 1000)
 
     # -- stream configuration -----------------------------------------------------------------
 
@@ -282,12 +285,6 @@ class MavlinkInstance(WorkItem):
         self._tx_at_last_run = self.tx_messages
         self.cpu_cost_ns = CPU_NS_BASE + n_rx * CPU_NS_PER_RX_MSG + n_tx * CPU_NS_PER_TX_MSG
         self.max_cost_ns = max(self.max_cost_ns, self.cpu_cost_ns)
-        w = self._run_ns_window
-        w[0] += self.cpu_cost_ns
-        w[1] += LOOP_INTERVAL_US
-        if w[1] >= 1_000_000:
-            self._load = min(1000, w[0] // w[1])  # busy ns per elapsed us = permille
-            w[0] = w[1] = 0
 
     _tx_at_last_run = 0
     #: the longest modelled run so far (ns): the budget a flood must not blow
