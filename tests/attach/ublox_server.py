@@ -88,6 +88,10 @@ class UbloxServer:
                 self.bytes_from_client += len(data)
                 self.gps.uart.receive(k.now_ns, self.gps.uart.config, data)
 
+    def inject(self, data: bytes) -> None:
+        """Noise on the line now (between the receiver's messages, or inside one)."""
+        self.send(data)
+
     def drop_client(self) -> None:
         """The device disappears: its end of the connection closes."""
         conn, self.conn = self.conn, None
