@@ -200,3 +200,36 @@ def test_motor_test_denied_when_armed(vehicle):
         assert orch.call("fmu", "topic", "actuator_armed")["armed"]
     finally:
         assert gcs.disarm(force=True).result == mav.MAV_RESULT_ACCEPTED
+
+
+def test_motor_test_denied_with_the_safety_on(vehicle):
+    """PX4's commander refuses the motor and actuator tests while the safety switch is on:
+    DENIED with a STATUSTEXT, no pulse reaches an ESC; with the safety off again they run."""
+    orch, dev = vehicle
+    gcs = dev["gcs"]
+
+    def safety_off():
+        return (orch.call("fmu", "topic", "px4io_status") or {}).get("status_safety_off")
+
+    gcs.step(1.6)   # the fixture's press may still be held (it waits for safety off only)
+    dev["safety"].press(orch.t_ns + 100 * MS, hold_s=1.5)       # a long press: safety on
+    gcs.wait_for(lambda: not safety_off(), timeout_s=5)
+    try:
+        mark = gcs.mark()
+        ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                               [1, mav.MOTOR_TEST_THROTTLE_PERCENT, 30, 1.0, 0, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [0.5, 1.0, 0, 0, 101, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        gcs.step(0.3)
+        assert all(p < 1000 for p in _pulses(dev)), _pulses(dev)
+        texts = [m.text for m in gcs.messages("STATUSTEXT", mark)]
+        assert any("safety switch not off" in t for t in texts), texts
+    finally:
+        gcs.step(1.6)
+        dev["safety"].press(orch.t_ns + 100 * MS, hold_s=1.5)   # off again
+        gcs.wait_for(safety_off, timeout_s=5)
+        gcs.step(1.6)   # released, so that a later press is a press of its own
+    ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                           [1, mav.MOTOR_TEST_THROTTLE_PERCENT, 20, 0.3, 0, 0, 0])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED
