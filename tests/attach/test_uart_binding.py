@@ -14,6 +14,8 @@ import os
 import random
 import re
 
+import pytest
+
 from hil.rc.sbus import us_to_sbus_raw
 from hil.system import SystemConfig, build_system
 from ioproc.rc.sbus import encode_sbus_frame
@@ -23,6 +25,7 @@ from .ublox_server import UbloxServer
 NS_PER_S = 1_000_000_000
 
 
+@pytest.mark.paced
 def test_gps_on_a_socket_gives_a_fix_and_survives_its_loss_rc_on_a_pty_reaches_the_fmu(
         tmp_path):
     # UBX NAV-PVT header with a short payload and a wrong checksum, inside random bytes
@@ -32,9 +35,11 @@ def test_gps_on_a_socket_gives_a_fix_and_survives_its_loss_rc_on_a_pty_reaches_t
     log: list[str] = []
     # an S.BUS receiver on the IO's RC input, behind one end of a pty pair
     rc_master, rc_slave = os.openpty()
+    # paced, as in hil fly: the receiver runs in wall time, and an unpaced emulator on a busy
+    # machine can outrun it by more than the driver's 1 s NAV-PVT timeout
     orch, dev = build_system(SystemConfig(seed=1, out_dir=str(tmp_path), mode="local", rc=None,
-                                          uart_bind={"gps": server.url,
-                                                     "rc": os.ttyname(rc_slave)}))
+                                          speed=1.0, uart_bind={"gps": server.url,
+                                                                "rc": os.ttyname(rc_slave)}))
     os.close(rc_slave)
     sticks = [us_to_sbus_raw(1500)] * 16
     sticks[2] = us_to_sbus_raw(1100)  # throttle low
