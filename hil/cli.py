@@ -198,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="bind an emulated CAN bus to a python-can bus, e.g. CAN1=socketcan:vcan0, "
                         "CAN1=virtual:chan0, CAN1=slcan:/dev/ttyACM0@115200 (docs/attaching.md)")
     p.add_argument("--uart", action="append", default=[], metavar="NAME=URL",
-                   help="bind an emulated UART (gps, telem1, telem2, rc) to a pyserial URL or "
+                   help="bind an emulated UART (gps, telem1, telem2, rc, dsm) to a pyserial URL or "
                         "device, e.g. gps=/dev/ttyUSB0, telem1=socket://10.0.0.5:5760, "
                         "gps=rfc2217://host:4000 (docs/attaching.md)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=V",
