@@ -64,10 +64,11 @@ class CalibrationRunner(WorkItem):
 
 
 def _int(value: float) -> int:
-    """A command parameter as an integer (NaN, MAVLink's "unused", and infinities are 0)."""
+    """A command parameter as PX4 reads it, ``(int)param`` (truncated); NaN, MAVLink's
+    "unused", and infinities are 0."""
     if value != value or value in (float("inf"), float("-inf")):
         return 0
-    return int(round(value))
+    return int(value)
 
 
 def _routine(params7: list[int], orb: Any, params: Any, say: Say) -> Routine | None:
