@@ -233,3 +233,25 @@ def test_motor_test_denied_with_the_safety_on(vehicle):
     ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
                            [1, mav.MOTOR_TEST_THROTTLE_PERCENT, 20, 0.3, 0, 0, 0])
     assert ack.result == mav.MAV_RESULT_ACCEPTED
+
+
+def test_motor_test_denied_when_com_mot_test_en_is_0(vehicle):
+    """COM_MOT_TEST_EN 0 disables the motor and actuator tests (PX4: DENIED)."""
+    orch, dev = vehicle
+    gcs = dev["gcs"]
+    gcs.param_set("COM_MOT_TEST_EN", 0)
+    try:
+        gcs.step(0.1)
+        ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                               [3, mav.MOTOR_TEST_THROTTLE_PERCENT, 30, 1.0, 0, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        ack = gcs.command_long(mav.MAV_CMD_ACTUATOR_TEST, [0.5, 1.0, 0, 0, 103, 0, 0])
+        assert ack.result == mav.MAV_RESULT_DENIED
+        gcs.step(0.3)
+        assert all(p < 1000 for p in _pulses(dev)), _pulses(dev)
+    finally:
+        gcs.param_set("COM_MOT_TEST_EN", 1)
+        gcs.step(0.1)
+    ack = gcs.command_long(mav.MAV_CMD_DO_MOTOR_TEST,
+                           [3, mav.MOTOR_TEST_THROTTLE_PERCENT, 20, 0.3, 0, 0, 0])
+    assert ack.result == mav.MAV_RESULT_ACCEPTED

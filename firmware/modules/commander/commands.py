@@ -120,7 +120,7 @@ class CommandHandler:
 
     def _motor_test_refused(self) -> str:
         """Why a motor test may not run now ('' if it may): PX4's commander denies it when
-        armed or while the safety switch is on."""
+        armed, while the safety switch is on, or with COM_MOT_TEST_EN not 1."""
         from firmware.modules.commander.params import CBRK_IO_SAFETY_KEY
         if self.arming_state == 2:  # ARMED
             return "motor test: not while armed"
@@ -128,6 +128,8 @@ class CommandHandler:
         if io is not None and not io.status_safety_off and \
                 self.p["CBRK_IO_SAFETY"] != CBRK_IO_SAFETY_KEY:
             return "motor test: safety switch not off"
+        if self.p["COM_MOT_TEST_EN"] != 1:
+            return "motor test: disabled (COM_MOT_TEST_EN)"
         return ""
 
     def _publish_test_motor(self, motor: int, value: float, timeout_s: float) -> None:

@@ -96,6 +96,10 @@ PARAMS: Final[tuple[ParamDef, ...]] = (
                   "in PX4 1.14 (which dropped COM_OBL_ACT), one parameter serves with and "
                   "without RC: a manual mode that cannot run without manual control falls "
                   "back to Return (then Land, Descend)."),
+    ParamDef("COM_MOT_TEST_EN", "INT32", 1, min=0, max=1, group=_C,
+             short="Enable Motor Testing", values={0: "Disabled", 1: "Enabled"},
+             long="If set, enables the motor test interface via MAVLink (DO_MOTOR_TEST and "
+                  "ACTUATOR_TEST), that allows spinning the motors for testing purposes."),
     ParamDef("CBRK_IO_SAFETY", "INT32", 0, min=0, max=22027, group="Circuit Breaker",
              short="Circuit breaker for IO safety",
              long="Set to 22027 to disable the safety switch check."),
