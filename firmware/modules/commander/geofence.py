@@ -51,7 +51,8 @@ from firmware.platform.params import ParamDef
 if TYPE_CHECKING:
     from firmware.modules.commander.commander import CommanderModule
 
-__all__ = ["GEOFENCE_PARAMS", "GF_ACTIONS", "Geofence", "inside_polygon"]
+__all__ = ["GEOFENCE_PARAMS", "GF_ACTIONS", "Geofence", "fence_areas", "inside_fence",
+           "inside_polygon"]
 
 _G: Final = "Geofence"
 GEOFENCE_PARAMS = (
@@ -94,6 +95,21 @@ def inside_polygon(lat: float, lon: float, vertices: list[tuple[float, float]]) 
 
 #: an area: (command, polygon vertices or None, circle (lat, lon, radius) or None)
 _Area = tuple[int, list[tuple[float, float]] | None, tuple[float, float, float] | None]
+
+
+def fence_areas(points: Any, home: tuple[float, float] | None) -> tuple[list[_Area], int]:
+    """The uploaded fence's areas in use and how many were dropped: with a home, an area that
+    does not hold it is dropped (PX4's checkHomeRequirementsForGeofence)."""
+    polygons, circles = polygons_and_circles(points)
+    areas: list[_Area] = [(c, v, None) for c, v in polygons]
+    areas += [(c, None, (lat, lon, r)) for c, lat, lon, r in circles]
+    kept = [a for a in areas if home is None or _area_passes(a, home[0], home[1])]
+    return kept, len(areas) - len(kept)
+
+
+def inside_fence(areas: list[_Area], lat: float, lon: float) -> bool:
+    """Whether a point passes every area (inside each inclusion, outside each exclusion)."""
+    return all(_area_passes(a, lat, lon) for a in areas)
 
 
 def _area_passes(area: _Area, lat: float, lon: float) -> bool:
@@ -139,14 +155,10 @@ class Geofence:
         self.areas = []
         if store is None:
             return
-        polygons, circles = polygons_and_circles(store.points)
-        areas: list[_Area] = [(c, v, None) for c, v in polygons]
-        areas += [(c, None, (lat, lon, r)) for c, lat, lon, r in circles]
-        for area in areas:
-            if home is not None and not _area_passes(area, home.lat, home.lon):
-                cmd.error("Geofence invalid, doesn't contain Home position")
-                continue
-            self.areas.append(area)
+        self.areas, dropped = fence_areas(
+            store.points, None if home is None else (float(home.lat), float(home.lon)))
+        for _ in range(dropped):
+            cmd.error("Geofence invalid, doesn't contain Home position")
 
     @property
     def present(self) -> bool:

@@ -87,7 +87,33 @@ class MissionMode(NavMode):
                 self.nav.warn(f"Mission rejected: first waypoint {d:.0f} m from home "
                               f"(MIS_DIST_1WP {limit:.0f} m)")
                 return False
+        outside = self._fence_violation()
+        if outside is not None:
+            self.nav.error(f"Geofence violation for waypoint {outside + 1}")
+            return False
         return True
+
+    def _fence_violation(self) -> int | None:
+        """PX4's feasibility check against the uploaded fence (``checkGeofence``): the index
+        of the first position item outside it, or None. Only with GF_ACTION above None, as
+        the commander reacts to a breach only then; items without a position of their own
+        (NaN: "here") are not checked."""
+        from firmware.modules.commander.geofence import fence_areas, inside_fence
+        from firmware.modules.dataman import find_fence
+
+        params = self.nav.system.params
+        if params is None or int(params.get("GF_ACTION", 0) or 0) <= 0:
+            return None
+        store = find_fence(self.nav.system)
+        if store is None or not store.points:
+            return None
+        home = self.nav.home()
+        areas, _ = fence_areas(store.points, None if home is None else (home[0], home[1]))
+        for i, it in enumerate(self.items):
+            if it.nav_cmd in _POSITION_ITEMS and math.isfinite(it.lat) and \
+                    math.isfinite(it.lon) and not inside_fence(areas, it.lat, it.lon):
+                return i
+        return None
 
     def start_at(self, seq: int) -> None:
         """MISSION_START with a first item."""
@@ -112,6 +138,12 @@ class MissionMode(NavMode):
 
     def on_activation(self) -> None:
         nav = self.nav
+        if self.valid:   # a fence uploaded after the mission is checked when it starts
+            outside = self._fence_violation()
+            if outside is not None:
+                nav.error(f"Geofence violation for waypoint {outside + 1}")
+                self.valid = False
+                self.publish_result()
         if not self.valid:
             nav.warn("Mission not valid, holding")
             nav.hold_here()
