@@ -116,6 +116,7 @@ class CalibrationJig:
         self.temperature_c = isa_temperature_k(alt_m) - KELVIN_0C
         self.r_bn = _euler_dcm(*(math.radians(a) for a in (roll_deg, pitch_deg, yaw_deg)))
         self._motion: tuple[str, int, int, Mat, Vec, float, float] | None = None
+        self._end_target: Mat = self.r_bn  # where the current turn ends
         self._t_ns = 0
         self._next_ns = 0
         self._out: list = []
