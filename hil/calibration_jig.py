@@ -245,9 +245,14 @@ def statustexts(messages: list[Any]) -> list[str]:
             continue
         parts = partial.setdefault(m.id, [])
         parts.append(text)
-        if len(m.text.rstrip("\0")) < 50:
+        if not _chunk_open(m):
             out.append("".join(partial.pop(m.id)))
     return out
+
+
+def _chunk_open(m: Any) -> bool:
+    """A chunk of a longer STATUSTEXT that more chunks follow."""
+    return bool(getattr(m, "id", 0)) and len(m.text.rstrip("\0")) >= 50
 
 
 class SideTurner:
@@ -270,8 +275,7 @@ class SideTurner:
         """Read new STATUSTEXTs and act on them; the new texts."""
         msgs = self.gcs.messages("STATUSTEXT", self.mark)
         held = 0  # a text still missing chunks is read again next time, whole
-        while held < len(msgs) and getattr(msgs[-1 - held], "id", 0) and \
-                len(msgs[-1 - held].text.rstrip("\0")) >= 50:
+        while held < len(msgs) and _chunk_open(msgs[-1 - held]):
             held += 1
         self.mark = self._cursor_at(msgs[-held]) if held else self.gcs.mark()
         new = statustexts(msgs[:len(msgs) - held])
