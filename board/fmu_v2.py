@@ -225,13 +225,14 @@ class FmuV2Board(Board):
             from peripherals.uavcan_node import UavcanNode
 
             return UavcanNode(self.kernel, bus, spec, name=f"uavcan_node{spec}", seed=self.seed)
-        kind, _, nid = str(spec).partition("@")
+        from peripherals.dronecan.spec import parse_node_spec
+
+        try:
+            kind, node_id = parse_node_spec(spec)
+        except ValueError as exc:
+            raise ValueError(f"uavcan_nodes: {exc}") from None
+        nid = str(spec).partition("@")[2]
         esc = kind[3:] if kind.startswith("esc") else ""
-        if (kind not in ("gnss", "mag") and esc not in ("1", "2", "3", "4")) or (
-                nid and not nid.isdigit()):
-            raise ValueError(f"uavcan_nodes: {spec!r} is not a node ID, 'gnss[@id]', "
-                             f"'mag[@id]' or 'esc1'..'esc4[@id]'")
-        node_id = int(nid or 0)
         name = f"can_{kind}{nid and '@' + nid}"
         if esc:
             from peripherals.dronecan.esc import EscNode
@@ -552,6 +553,16 @@ class FmuV2Board(Board):
                 return
         raise ValueError(f"no CAN node {node!r} (have {[n.name for n in self.can_nodes]})")
 
+    def ctl_can_esc_errors(self, node: str, errors_per_s: float) -> None:
+        """A DroneCAN ESC node on CAN1 (by name or node ID as text) counts errors at this rate
+        in its esc.Status (0: healthy again): :meth:`EscNode.set_error_rate`."""
+        for n in self.can_nodes:
+            if node in (n.name, str(n.node_id)) and hasattr(n, "set_error_rate"):
+                n.set_error_rate(float(errors_per_s))
+                return
+        raise ValueError(f"no CAN ESC node {node!r} (have "
+                         f"{[n.name for n in self.can_nodes if hasattr(n, 'set_error_rate')]})")
+
     def ctl_can_stats(self, bus: str) -> dict[str, Any]:
         """The FMU controller's error state and counters on ``bus``, the bus's, and every
         UAVCAN node plugged into it."""
@@ -569,12 +580,13 @@ class FmuV2Board(Board):
         return list(self.platform.dmesg)
 
     def ctl_topic(self, topic: str, instance: int = 0) -> dict[str, Any] | None:
-        """The latest message of a topic instance as a dict (tests and tools)."""
+        """The latest message of a topic instance as a dict (tests and tools); nested
+        messages (esc_status.esc) as dicts too, so the answer crosses a process boundary."""
         node = self.platform.orb.node(topic, instance)
         msg = node.last
         if msg is None:
             return None
-        return {f: getattr(msg, f) for f in msg._fields} | {"_count": node.publish_count}
+        return _plain(msg) | {"_count": node.publish_count}
 
     def ctl_fault(self, device: str, fault: str, value: Any = True) -> None:
         """Set a fault on a device model (see peripherals/faults.py)."""
@@ -587,3 +599,16 @@ class FmuV2Board(Board):
         if what not in ("lose_fix", "degrade", "jump", "jam", "set_absent"):
             raise ValueError(f"no GPS fault {what!r} (lose_fix, degrade, jump, jam, set_absent)")
         getattr(self.devices["gps"], what)(*args)
+
+
+def _plain(msg: Any) -> dict[str, Any]:
+    """A message's fields as a dict, nested messages (single or in arrays) as dicts."""
+    out: dict[str, Any] = {}
+    for f in msg._fields:
+        v = getattr(msg, f)
+        if hasattr(v, "_fields"):
+            v = _plain(v)
+        elif isinstance(v, list) and v and hasattr(v[0], "_fields"):
+            v = [_plain(e) for e in v]
+        out[f] = v
+    return out

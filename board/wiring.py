@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-__all__ = ["Wire", "WORLD", "uart_link", "PIXHAWK1"]
+__all__ = ["Wire", "WORLD", "uart_link", "PIXHAWK1", "CAN_ESC_WIRES", "CAN_ESC_NODES",
+           "with_can_escs"]
 
 WORLD: Final = "world"
 
@@ -44,3 +45,21 @@ PIXHAWK1: Final[list[Wire]] = [
     *[Wire(("io", f"pwm{i}"), (WORLD, f"esc{i}"), f"IO main output {i} -> ESC {i}")
       for i in range(1, 9)],
 ]
+
+#: DroneCAN ESC nodes on the FMU's CAN1, one per motor of the quadrotor, with fixed node IDs
+#: 11..14 (as a user configures them, so their IDs do not depend on allocation order):
+#: ``FmuV2Board(uavcan_nodes=...)`` entries.
+CAN_ESC_NODES: Final[tuple[str, ...]] = tuple(f"esc{i}@{10 + i}" for i in range(1, 5))
+
+#: The motors on CAN ESCs: each ESC node's motor output (``can_escN``, the pulse train
+#: equivalent to its RawCommand element) drives the world's ESC/motor ``escN``.
+CAN_ESC_WIRES: Final[list[Wire]] = [
+    Wire(("fmu", f"can_esc{i}"), (WORLD, f"esc{i}"), f"CAN ESC {i} (node {10 + i}) -> motor {i}")
+    for i in range(1, 5)]
+
+
+def with_can_escs(wiring: list[Wire]) -> list[Wire]:
+    """``wiring`` with motors 1..4 moved from the IO's main outputs to the CAN ESCs: the IO's
+    ``pwm1..4`` are unplugged (nothing else drives those motors), ``pwm5..8`` stay."""
+    moved = {w.dst for w in CAN_ESC_WIRES}
+    return [w for w in wiring if not (w.src[0] == "io" and w.dst in moved)] + CAN_ESC_WIRES

@@ -21,7 +21,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
                        mode="local" if args.one_process else "process",
                        timeout_s=args.duration, progress=not args.json,
-                       pipeline=not args.no_pipeline, pin_cpus=not args.no_pin)
+                       pipeline=not args.no_pipeline, pin_cpus=not args.no_pin,
+                       can_escs=args.can_escs)
     return main(cfg, as_json=args.json)
 
 
@@ -44,7 +45,8 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
                 airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram,
-                fixed_utc=args.fixed_utc, can=args.can, uart=args.uart, param=args.param)
+                fixed_utc=args.fixed_utc, can=args.can, uart=args.uart, param=args.param,
+                can_escs=args.can_escs)
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
@@ -178,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-pin", action="store_true",
                    help="leave CPU placement to the OS (default: the FMU process gets a CPU "
                         "of its own, the orchestrator and the IO share the others)")
+    p.add_argument("--can-escs", action="store_true",
+                   help="motors on four DroneCAN ESCs (nodes 11-14 on CAN1, UAVCAN_ENABLE 3) "
+                        "instead of the IO's PWM outputs")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
 
@@ -201,6 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="bind an emulated UART (gps, telem1, telem2, rc, dsm) to a pyserial URL or "
                         "device, e.g. gps=/dev/ttyUSB0, telem1=socket://10.0.0.5:5760, "
                         "gps=rfc2217://host:4000 (docs/attaching.md)")
+    p.add_argument("--can-escs", action="store_true",
+                   help="motors on four DroneCAN ESCs (nodes 11-14 on CAN1, UAVCAN_ENABLE 3) "
+                        "instead of the IO's PWM outputs")
     p.add_argument("--param", action="append", default=[], metavar="NAME=V",
                    help="parameter override at boot, e.g. UAVCAN_ENABLE=1")
     p.set_defaults(func=_cmd_fly)

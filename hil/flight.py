@@ -55,6 +55,9 @@ class FlightConfig:
     pipeline: bool = True               # lookahead lockstep (see Orchestrator._step_pipelined)
     pin_cpus: bool = True               # the FMU on a CPU of its own (hil.cpu_plan)
     trace_path: str | None = None       # write a lockstep trace (hil.trace) of every board
+    can_escs: bool = False              # motors on DroneCAN ESCs (hil.system.SystemConfig); the
+                                        # summary then has "can1", "outputs_at_takeoff" and
+                                        # "uavcan_status"
 
 
 class _Recorder:
@@ -104,7 +107,8 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
     scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
                         params=params, gcs=True, pipeline=cfg.pipeline,
-                        pin_cpus=cfg.pin_cpus, trace_path=cfg.trace_path)
+                        pin_cpus=cfg.pin_cpus, trace_path=cfg.trace_path,
+                        can_escs=cfg.can_escs)
     progress = Progress(enabled=cfg.progress)
     if cfg.progress:
         print(f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}; "
@@ -164,6 +168,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         phase("armed", then=f"mission: taking off to {cfg.altitude_m:.0f} m")
         gcs.start_mission()
         t_takeoff = None
+        outputs: dict[str, Any] | None = None
         reached: set[int] = set()
         deadline = orch.t_ns + int(cfg.timeout_s * S)
         while orch.t_ns < deadline:
@@ -171,6 +176,11 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
             agl = world.truth().agl_m
             if t_takeoff is None and agl > cfg.altitude_m - 0.5:
                 t_takeoff = orch.t_ns
+                if cfg.can_escs:  # which outputs drive the motors in the climb
+                    outputs = {"io_pwm": orch.call("io", "pwm"),
+                               "io_should_arm": orch.call("io", "status").get("should_arm"),
+                               "can_esc": [orch.call("fmu", "port_level", f"can_esc{i}")
+                                           for i in range(1, 5)]}
                 phase(f"takeoff: reached {cfg.altitude_m:.0f} m",
                       then="mission: flying to waypoint 1")
             for m in gcs.messages("MISSION_ITEM_REACHED", since=max(0, gcs.mark() - 200)):
@@ -189,9 +199,15 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
             raise RuntimeError(f"flight did not finish within {cfg.timeout_s} virtual s")
         rtf = orch.rtf
         cpus = orch.cpu_plan.describe() if orch.cpu_plan is not None else None
+        can1 = orch.call("fmu", "can_stats", "CAN1") if cfg.can_escs else None
+        uavcan = orch.call("fmu", "shell", "uavcan status")[1] if cfg.can_escs else None
     wall = time.perf_counter() - wall0
     summary = _summary(cfg, rec.rows, phases, reached, home, rtf, wall)
     summary["cpus"] = cpus
+    if cfg.can_escs:
+        summary["can1"] = can1                   # CAN1 and its ESC nodes' counters at the end
+        summary["outputs_at_takeoff"] = outputs
+        summary["uavcan_status"] = uavcan
     return summary
 
 
@@ -308,6 +324,11 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
           f" deg, tilt max {summary['tilt_error_max_deg']} deg, position rms "
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")
     print(f"  landed {summary['landed_distance_m']:.2f} m from home")
+    if summary.get("can1"):
+        nodes = summary["can1"]["nodes"].values()
+        print(f"  motors on CAN ESCs: RawCommands received {[n['commands_rx'] for n in nodes]}, "
+              f"esc.Status sent {[n['status_tx'] for n in nodes]}, CAN error frames "
+              f"{summary['can1']['error_frames']}")
     tier = ("compiled tier" if summary["compiled"]
             else "pure Python; `make native` compiles the boards, ~1.2-1.3x faster")
     cpus = summary.get("cpus") or "CPUs not pinned"

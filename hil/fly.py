@@ -76,7 +76,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          out_dir: str = "out", airframe: int = 4011, keep_safety: bool = False,
          params: dict[str, Any] | None = None, quiet: bool = False,
          keep_fram: bool = False, fixed_utc: bool = False, can: list[str] | None = None,
-         uart: list[str] | None = None, param: list[str] | None = None) -> int:
+         uart: list[str] | None = None, param: list[str] | None = None,
+         can_escs: bool = False) -> int:
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
@@ -105,7 +106,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                        fresh_fram=not keep_fram,
                        gps_utc_start_ns=None if fixed_utc else time.time_ns(),
                        can_hosts=("CAN1",), can_tcp=True, can_bind=can_bind,
-                       uart_bind=uart_bind,
+                       uart_bind=uart_bind, can_escs=can_escs,
                        params={"EKF2_MAG_DECL": 2.6, **(params or {}), **extra})
     try:
         orch, dev = build_system(cfg)

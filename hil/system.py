@@ -3,7 +3,8 @@
 :func:`build_system` returns an :class:`~hil.orchestrator.Orchestrator` (not started) wired as
 ``board/wiring.py`` says, with the host devices behind ``"world"``:
 
-* the JSBSim world (truth to the FMU, ESCs from the IO's PWM, battery to the power module),
+* the JSBSim world (truth to the FMU, ESCs from the IO's PWM, or with ``can_escs`` motors 1..4
+  from four DroneCAN ESC nodes on CAN1, battery to the power module),
 * an RC transmitter with an S.BUS receiver on the IO (the rig's other receiver kinds can be
   added), scripted in virtual time,
 * the safety switch,
@@ -16,14 +17,15 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from board.wiring import PIXHAWK1, WORLD, Wire, uart_link
+from board.wiring import CAN_ESC_NODES, PIXHAWK1, WORLD, Wire, uart_link, with_can_escs
 from hil.devices import DeviceHub
 from hil.orchestrator import BoardSpec, Orchestrator
 from hil.rc import RcRig, Transmitter
 from hil.safety_switch import SafetySwitch
 from hil.worldlink import WorldPorts
 
-__all__ = ["DEFAULT_AIRFRAME", "DEFAULT_QUANTUM_NS", "SystemConfig", "build_system"]
+__all__ = ["CAN_ESC_PARAMS", "DEFAULT_AIRFRAME", "DEFAULT_QUANTUM_NS", "SystemConfig",
+           "build_system"]
 
 #: DJI F450 (the world's JSBSim model)
 DEFAULT_AIRFRAME = 4011
@@ -33,6 +35,12 @@ DEFAULT_AIRFRAME = 4011
 #: exchanges per virtual second; 250 us reaches 100 % but costs three times that
 #: (docs/architecture.md, Lockstep).
 DEFAULT_QUANTUM_NS = 500_000
+#: What a PX4 user sets to fly the F450 on DroneCAN ESCs (``SystemConfig.can_escs``): the
+#: uavcan driver mixes and sends RawCommand (UAVCAN_ENABLE 3), with the ESC range of the
+#: airframe's PWM_MIN/PWM_MAX 1230/1950 us on ESCs calibrated 1000-2000 us, as fractions of
+#: 8191: 0.230 x 8191 = 1884, 0.950 x 8191 = 7782 (same idle, same full thrust).
+CAN_ESC_PARAMS: dict[str, int] = {"UAVCAN_ENABLE": 3, "UAVCAN_EC_MIN": 1884,
+                                  "UAVCAN_EC_MAX": 7782}
 
 
 @dataclass
@@ -54,7 +62,10 @@ class SystemConfig:
     udp_bridge: bool = False          # real UDP sockets on 127.0.0.1 (hil fly)
     pipeline: bool = False            # lookahead lockstep (Orchestrator._step_pipelined)
     pin_cpus: bool = False            # the FMU on a CPU of its own (hil.cpu_plan)
-    uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (node IDs) plugged into the FMU's CAN1
+    uavcan_nodes: tuple[int | str, ...] = ()  # DroneCAN nodes on the FMU's CAN1 (FmuV2Board)
+    #: motors 1..4 on DroneCAN ESCs (nodes 11..14 on CAN1) instead of the IO's PWM outputs,
+    #: with CAN_ESC_PARAMS under ``params`` (board/wiring.py with_can_escs)
+    can_escs: bool = False
     #: UTC (ns since 1970) the GPS reports at power on; None: the fixed epoch (2024-06-01 12:00,
     #: peripherals.ublox.solution.START_UTC_NS) so logs are byte-identical per seed. hil fly
     #: passes the host's UTC (read here at the edge) so that each run's logs get distinct names.
@@ -83,13 +94,19 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         os.remove(fram)
         if os.path.exists(fram + ".sr"):
             os.remove(fram + ".sr")
-    params = {"SYS_AUTOSTART": cfg.airframe, **cfg.params}
+    params = {"SYS_AUTOSTART": cfg.airframe, **(CAN_ESC_PARAMS if cfg.can_escs else {}),
+              **cfg.params}
+    uavcan_nodes = (*cfg.uavcan_nodes, *(CAN_ESC_NODES if cfg.can_escs else ()))
+    if cfg.can_escs:
+        from peripherals.dronecan.spec import check_node_specs
+
+        check_node_specs(uavcan_nodes)  # an ESC or node ID given twice: ValueError
     fmu_kwargs: dict[str, Any] = {"name": "fmu", "seed": cfg.seed, "fram_path": fram,
                                   "sd_root": sd_root, "params": params}
     if cfg.host_clock:
         fmu_kwargs["host_clock"] = "perf_counter"
-    if cfg.uavcan_nodes:
-        fmu_kwargs["uavcan_nodes"] = tuple(cfg.uavcan_nodes)
+    if uavcan_nodes:
+        fmu_kwargs["uavcan_nodes"] = uavcan_nodes
     if cfg.gps_utc_start_ns is not None:
         fmu_kwargs["gps_utc_start_ns"] = int(cfg.gps_utc_start_ns)
     can_hosts = tuple(dict.fromkeys((*cfg.can_hosts, *cfg.can_bind)))
@@ -103,6 +120,8 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
     rc_port = {"sbus": "rc_sbus", "dsm": "rc_dsm", "ppm": "rc_ppm"}
     wiring: list[Wire] = [w for w in PIXHAWK1
                           if not (w.src[0] == WORLD and w.src[1].startswith("rc_"))]
+    if cfg.can_escs:
+        wiring = with_can_escs(wiring)
     if cfg.rc is not None:
         if cfg.rc not in rc_port:
             raise ValueError(f"RC receiver must be one of {sorted(rc_port)}, got {cfg.rc!r}")

@@ -216,3 +216,29 @@ def can_node_silent(rig: Rig, target: str, params: dict[str, Any], t_ns: int) ->
 def _can_node_silent_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                           token: Any) -> None:
     board_call(rig, "bus.can_node_silent", token[0], "can_node_silent", token[1], False)
+
+
+@fault_kind("bus.can_esc_errors", level="bus", errors_per_s=10.0,
+            doc="A DroneCAN ESC on the FMU's CAN1 fails (target 'fmu.<node>': its name, "
+                "can_esc2@12, or its node ID, 12): a desyncing motor, a bad phase or a "
+                "browning-out supply makes its firmware count errors_per_s errors, which its "
+                "esc.Status reports in error_count, and its NodeStatus health goes to WARNING; "
+                "it keeps driving its motor. The FMU's uavcan driver shows the count in "
+                "esc_status.esc[i].esc_errorcount and `uavcan status` (errors N), the node's "
+                "health in its node table. The count stays when the fault clears, as an ESC's "
+                "counter does until it restarts. A dead ESC is bus.can_node_silent on it: it "
+                "stops its motor and the commander reports 'ESCn offline'.")
+def can_esc_errors(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
+    name = "bus.can_esc_errors"
+    board, node = _split(target, name, "<CAN ESC node>")
+    rate = number(params, "errors_per_s", name, 0.0, 10_000.0)
+    if rate == 0:
+        raise FaultError(f"fault {name}: errors_per_s must be above 0")
+    board_call(rig, name, board, "can_esc_errors", node, rate)
+    return (board, node)
+
+
+@can_esc_errors.stopper
+def _can_esc_errors_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
+                         token: Any) -> None:
+    board_call(rig, "bus.can_esc_errors", token[0], "can_esc_errors", token[1], 0.0)

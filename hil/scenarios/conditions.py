@@ -38,7 +38,8 @@ class ConditionError(ValueError):
     """A condition that does not parse or names an unknown observable."""
 
 
-_NAME = re.compile(r"^[A-Za-z_][\w.]*(\[-?\d+(:-?\d*)?\]|\[:-?\d+\])*$")
+#: a name, an optional element of a nested message array (``esc[1].esc_rpm``), indices
+_NAME = re.compile(r"^[A-Za-z_][\w.]*(\[\d+\]\.[A-Za-z_]\w*)?(\[-?\d+(:-?\d*)?\]|\[:-?\d+\])*$")
 
 
 def _literal(tok: str) -> Any:

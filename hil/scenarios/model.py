@@ -18,13 +18,14 @@ from hil.scenarios.document import (MAX_FILE_BYTES, ScenarioError, check_shape, 
                                     short_repr as _r)
 from hil.scenarios.conditions import Condition, ConditionError, parse_condition
 from hil.scenarios.observables import is_observable
+from peripherals.dronecan.spec import check_node_specs
 
 __all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
            "scenario_from_dict"]
 
 TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
             "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
-            "known_failure", "uavcan_nodes"}
+            "known_failure", "uavcan_nodes", "can_escs"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
               "settle")
@@ -113,7 +114,10 @@ class Scenario:
     reference: str = ""             # where the expected behaviour comes from (PX4 docs, params)
     known_failure: str = ""         # why this tree fails it today (the library test expects
                                     # the failure, strictly: a fix turns it into a pass)
-    uavcan_nodes: tuple[int, ...] = ()  # UAVCAN nodes (their IDs) on the FMU's CAN1
+    #: DroneCAN nodes on the FMU's CAN1 as the board takes them (peripherals/dronecan/spec.py):
+    #: node IDs, "gnss", "mag", "esc1".."esc4", each kind with an optional "@id"
+    uavcan_nodes: tuple[int | str, ...] = ()
+    can_escs: bool = False          # motors on DroneCAN ESCs (hil.system.SystemConfig)
     source: str = ""                # the file it came from
 
     def fault_kinds(self) -> set[str]:
@@ -467,10 +471,16 @@ def _from_dict(data: Any, source: str) -> Scenario:
     params = _params(d.get("params") or {}, "params")
     initial = _initial(d.get("initial") or {})
     nodes = d.get("uavcan_nodes") or []
-    if not isinstance(nodes, list) or not all(
-            isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 125 for n in nodes) \
-            or len(set(nodes)) != len(nodes):
-        raise ScenarioError(f"uavcan_nodes: a list of distinct node IDs 1..125, got {_r(nodes)}")
+    can_escs = _flag(d, "can_escs", False)
+    if not isinstance(nodes, list):
+        raise ScenarioError(f"uavcan_nodes: a list of nodes (IDs 1..125, 'gnss', 'mag', "
+                            f"'esc1'..'esc4', kinds with an optional '@id'), got {_r(nodes)}")
+    try:
+        parsed = check_node_specs(nodes)
+    except ValueError as exc:
+        raise ScenarioError(f"uavcan_nodes: {str(exc)[:200]}") from None
+    if can_escs and any(kind.startswith("esc") for kind, _ in parsed):
+        raise ScenarioError("uavcan_nodes: no ESC nodes with can_escs (it plugs in esc1..esc4)")
     events = {}
     for ev, spec in _mapping(d.get("events") or {}, "events").items():
         events[str(ev)] = _cond(spec, f"events.{ev}")
@@ -507,7 +517,7 @@ def _from_dict(data: Any, source: str) -> Scenario:
         duration_s=_num(d.get("duration", 120.0), "duration", lo=0.001), events=events,
         timeline=timeline, expect=expect, trace=_flag(d, "trace", True),
         reference=_text(d, "reference"), known_failure=_text(d, "known_failure"),
-        source=source, uavcan_nodes=tuple(nodes))
+        source=source, uavcan_nodes=tuple(nodes), can_escs=can_escs)
 
 
 def load_scenario(path: str) -> Scenario:

@@ -5,7 +5,8 @@ virtual time) and cached for that instant, so a topic read by three expectations
 board boundary once. Sources:
 
 * the FMU's uORB topics (``orch.call("fmu", "topic", name)``), named conveniences below and
-  the generic ``topic.<name>[.<instance>].<field>[index]``;
+  the generic ``topic.<name>[.<instance>].<field>[index]`` (a nested message's field:
+  ``topic.esc_status.esc[1].esc_errorcount``);
 * the IO board's status and pins (``orch.call("io", "status" | "pwm")``);
 * the world: motor pulses at the ESC inputs and the vehicle's true state;
 * the orchestrator: which boards are alive, how often a board rebooted;
@@ -142,6 +143,12 @@ class Sampler:
         if len(parts) == 3 and parts[1].isdigit():
             instance = int(parts[1])
             parts = [parts[0], parts[2]]
+        if len(parts) == 3 and parts[1].endswith("]"):  # a nested message: esc[1].esc_rpm
+            field, idx = _split_index(parts[1])
+            try:
+                return self.field(parts[0], field)[idx][parts[2]]
+            except (IndexError, KeyError, TypeError):
+                return None
         if len(parts) != 2:
             return None
         return self.field(parts[0], parts[1], instance)

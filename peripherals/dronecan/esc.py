@@ -17,6 +17,11 @@ esc.Status reports the supply voltage (the board's power input, ``supply_v()``) 
 node does not see the motor, current, RPM and temperature estimated from the command
 (``current ~ throttle^1.5``, ``rpm ~ throttle``): enough for the FMU to show a live ESC, not a
 motor measurement.
+
+``set_error_rate(errors_per_s)`` is a failing ESC (a desyncing motor, a brown-out on its
+supply, a bad phase): its firmware counts errors at that rate, which esc.Status carries in
+``error_count``, and reports NodeStatus health WARNING while the rate is above 0; it still
+drives its motor (fault kind ``bus.can_esc_errors``).
 """
 
 from __future__ import annotations
@@ -29,7 +34,8 @@ import numpy as np
 from board.can import CanBus
 from board.kernel import PRIO_HW, Kernel
 from firmware.lib.uavcan.transfer import RxTransfer, types
-from peripherals.dronecan.node import ALLOCATION_DTID, NODE_STATUS_DTID, DronecanNode
+from peripherals.dronecan.node import (ALLOCATION_DTID, HEALTH_OK, HEALTH_WARNING,
+                                       NODE_STATUS_DTID, DronecanNode)
 
 __all__ = ["ESC_STATUS_DTID", "EscNode", "RAW_COMMAND_DTID"]
 
@@ -69,6 +75,8 @@ class EscNode(DronecanNode):
         self.commands_rx = 0
         self.status_tx = 0
         self.error_count = 0
+        self.error_rate_per_s = 0.0
+        self._error_frac = 0.0
         self.timed_out = True
         self._last_cmd_ns = -COMMAND_TIMEOUT_NS
         self._out: tuple[int, int] = (0, PWM_PERIOD_NS)
@@ -111,6 +119,11 @@ class EscNode(DronecanNode):
         if not self.timed_out and now - self._last_cmd_ns >= COMMAND_TIMEOUT_NS:
             self.timed_out = True
             self._drive(now)
+        if self.error_rate_per_s > 0:  # the failing ESC's firmware counts errors meanwhile
+            self._error_frac += self.error_rate_per_s * STATUS_PERIOD_NS / 1e9
+            whole = int(self._error_frac)
+            self._error_frac -= whole
+            self.error_count = (self.error_count + whole) & 0xFFFFFFFF
         if self.silent:
             return
         th = self.throttle
@@ -125,6 +138,15 @@ class EscNode(DronecanNode):
         self.send(s, ESC_STATUS_DTID, now + STATUS_PERIOD_NS)
         self.status_tx += 1
 
+    def set_error_rate(self, errors_per_s: float) -> None:
+        """A failing ESC counts errors at ``errors_per_s`` (0: healthy again; the count stays,
+        as an ESC's error counter does until it restarts)."""
+        rate = float(errors_per_s)
+        if not rate >= 0.0:
+            raise ValueError(f"ESC node {self.name}: errors_per_s must be >= 0, got {rate!r}")
+        self.error_rate_per_s = rate
+        self.health = HEALTH_WARNING if rate > 0 else HEALTH_OK
+
     def set_silent(self, silent: bool = True) -> None:
         super().set_silent(silent)
         if silent:  # a hung ESC MCU stops driving its motor
@@ -134,4 +156,4 @@ class EscNode(DronecanNode):
     def stats(self) -> dict[str, Any]:
         return super().stats() | {"esc_index": self.esc_index, "raw": self.raw,
                                   "commands_rx": self.commands_rx, "status_tx": self.status_tx,
-                                  "timed_out": self.timed_out}
+                                  "timed_out": self.timed_out, "error_count": self.error_count}

@@ -39,12 +39,14 @@ from firmware.lib.uavcan.ids import PRIORITY_DEFAULT, PRIORITY_LOWEST
 from firmware.lib.uavcan.transfer import Reassembler, RxTransfer, TransferIds, encode, types
 from firmware.lib.uavcan.txqueue import TxQueue
 
-__all__ = ["DronecanNode", "HEALTH_OK", "MODE_OPERATIONAL", "NODE_STATUS_DTID", "unique_id_for"]
+__all__ = ["DronecanNode", "HEALTH_OK", "HEALTH_WARNING", "MODE_OPERATIONAL", "NODE_STATUS_DTID",
+           "unique_id_for"]
 
 NODE_STATUS_DTID: Final = 341
 GET_NODE_INFO_DTID: Final = 1
 ALLOCATION_DTID: Final = 1
 HEALTH_OK: Final = 0
+HEALTH_WARNING: Final = 1
 MODE_OPERATIONAL: Final = 0
 MODE_INITIALIZATION: Final = 1
 NS_PER_MS: Final = 1_000_000
@@ -94,6 +96,8 @@ class DronecanNode:
         self.rxa = Reassembler(node_id, self.ACCEPT)
         self.tids = TransferIds()
         self.silent = False
+        #: NodeStatus.health this node reports (a subclass raises it while it has a problem)
+        self.health = HEALTH_OK
         #: NodeStatus frames of other nodes received, per source node ID: (count, t_ns, uptime)
         self.heard: dict[int, tuple[int, int, int]] = {}
         self.node_status_rx = 0
@@ -127,7 +131,7 @@ class DronecanNode:
         if self.silent or self.node_id == 0:
             return
         mode = MODE_OPERATIONAL if self.allocated_at_ns is not None else MODE_INITIALIZATION
-        st = types().uavcan.protocol.NodeStatus(uptime_sec=self._uptime_s(), health=HEALTH_OK,
+        st = types().uavcan.protocol.NodeStatus(uptime_sec=self._uptime_s(), health=self.health,
                                                 mode=mode, sub_mode=0,
                                                 vendor_specific_status_code=0)
         self.send(st, NODE_STATUS_DTID, now + self.period_ns)
@@ -167,7 +171,7 @@ class DronecanNode:
         self.node_info_requests += 1
         t = types().uavcan.protocol
         r = t.GetNodeInfo.Response()
-        r.status = t.NodeStatus(uptime_sec=self._uptime_s(), health=HEALTH_OK,
+        r.status = t.NodeStatus(uptime_sec=self._uptime_s(), health=self.health,
                                 mode=MODE_OPERATIONAL, sub_mode=0, vendor_specific_status_code=0)
         r.software_version.major, r.software_version.minor = self.SW_VERSION
         r.hardware_version.major, r.hardware_version.minor = self.HW_VERSION

@@ -23,10 +23,10 @@ from hil.flight import FlightConfig, fly
 pytestmark = pytest.mark.slow
 
 
-def _fly(tmp_path_factory, seed: int, name: str) -> dict:
+def _fly(tmp_path_factory, seed: int, name: str, can_escs: bool = False) -> dict:
     out = tmp_path_factory.mktemp(name)
     return fly(FlightConfig(seed=seed, out_dir=str(out), progress=False, plot=False,
-                            keep_truth=True))
+                            keep_truth=True, can_escs=can_escs))
 
 
 @pytest.fixture(scope="module")
@@ -111,9 +111,39 @@ def test_same_seed_gives_a_byte_identical_log(flight, tmp_path_factory):
     assert filecmp.cmp(flight["log"], again["log"], shallow=False)
 
 
-def test_another_seed_differs_and_still_flies(flight, tmp_path_factory):
-    other = _fly(tmp_path_factory, 2, "seed2")
+def test_another_seed_flies_on_can_escs_as_accurately(flight, tmp_path_factory):
+    """The second whole mission: seed 2, and the motors on four DroneCAN ESCs (UAVCAN_ENABLE 3,
+    hil run --can-escs) instead of the IO's PWM. It must fly the mission with the bounds of the
+    seed-1 PWM flight, with the motors driven by CAN: RawCommands received by every ESC node,
+    their esc.Status heard, the ESC nodes' outputs running the motors in the climb while the
+    IO's outputs, unplugged from the motors, hold their disarmed pulse (no mixer on the IO)."""
+    other = _fly(tmp_path_factory, 2, "seed2", can_escs=True)
     assert not filecmp.cmp(flight["log"], other["log"], shallow=False)
     assert other["waypoints_reached"] == [1, 2, 3, 4]
     assert other["max_alt_error_m"] < 1.0
     assert other["landed_distance_m"] < 1.5
+    assert other["attitude_error_rms_deg"] < 2.0 and other["tilt_error_max_deg"] < 5.0
+    assert other["position_error_rms_m"] < 2.0 and other["position_error_max_m"] < 5.0
+    # as accurate as the PWM flight along the square (0.5 m of slack for the other seed)
+    assert other["max_track_error_m"] < flight["max_track_error_m"] + 0.5
+    airborne_s = _phase(other, "landed") - _phase(other, "armed")
+    nodes = other["can1"]["nodes"]
+    assert sorted(nodes) == [11, 12, 13, 14]
+    for nid, n in nodes.items():
+        # RawCommand at up to 200 Hz while armed, esc.Status at 10 Hz, none lost
+        assert n["commands_rx"] > 150 * airborne_s and n["status_tx"] > 9 * airborne_s, nid
+        assert n["rx_errors"] == dict.fromkeys(n["rx_errors"], 0) and not n["silent"], nid
+    assert other["can1"]["error_frames"] == 0 and other["can1"]["state"] == "error_active"
+    climb = other["outputs_at_takeoff"]
+    assert all(1_230_000 <= high_ns <= 1_950_000 and period_ns == 2_500_000
+               for high_ns, period_ns in climb["can_esc"])        # the motors run on CAN
+    assert all(high_ns <= 900_000 for high_ns, _ in climb["io_pwm"])  # the IO's disarmed pulse
+    assert not climb["io_should_arm"]
+    status = other["uavcan_status"]
+    assert "ESC output: mixer /etc/mixers/quad_x.main.mix" in status
+    for i in range(4):
+        assert re.search(rf"esc {i}: node {11 + i}, .* errors 0, status \d{{3,}}, ", status)
+    log = pyulog.ULog(other["log"], ["esc_status"])
+    esc = log.get_dataset("esc_status").data
+    assert np.all(esc["esc_online_flags"] == 0b1111) and np.all(esc["esc_count"] == 4)
+    assert esc["esc[0].esc_rpm"].max() > 3000   # what the ESC reports in flight

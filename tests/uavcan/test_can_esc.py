@@ -45,6 +45,9 @@ def test_mixed_raw_commands_reach_the_esc_nodes_and_their_motor_outputs(tmp_path
     fly((0, 0, 0, 0.5), 100)
     assert [e.raw for e in escs] == [5038] * 4  # 1884 + 0.5 x (8191 - 1884)
     assert [b.port_levels[f"can_esc{i}"] for i in range(1, 5)] == [_pulse(5038)] * 4
+    st = b.ctl_topic("esc_status")  # what the ESCs report, as PX4's esc_status
+    assert st["esc_count"] == 4 and st["esc_online_flags"] == st["esc_armed_flags"] == 0b1111
+    assert all(e["esc_rpm"] >= 2000 and e["esc_current"] > 0 for e in st["esc"][:4])
     # roll right: the left motors (PX4 quad X: 2 rear left, 3 front left) speed up
     fly((0.2, 0, 0, 0.5), 50)
     r = [e.raw for e in escs]

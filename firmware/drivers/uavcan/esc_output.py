@@ -10,7 +10,10 @@ output in -1..1 becomes the RawCommand value ``UAVCAN_EC_MIN + (out + 1) / 2 x (
 on PWM sets UAVCAN_EC_MIN to the same fraction of 8191); disarmed (or with no mixer) every ESC
 gets 0, which stops it. Commands go out at most every
 5 ms (PX4's uavcan ESC controller runs at up to 200 Hz). esc.Status from the ESC nodes is kept
-per ESC index (``uavcan status``).
+per ESC index (``uavcan status``) and published as ``esc_status`` at 10 Hz (:meth:`EscOutput.fill_status`):
+an ESC is online while its esc.Status arrives within ``ESC_STATUS_TIMEOUT_US`` (1.2 s, a dozen
+missed 10 Hz reports, as PX4's uavcan ESC controller), which the commander watches for a lost
+ESC (firmware/modules/commander/esc_check.py).
 """
 
 from __future__ import annotations
@@ -19,11 +22,15 @@ from typing import Any, Final
 
 from ioproc.mixer import MixerGroup, parse_mixer_text
 
-__all__ = ["EscOutput", "EscReport", "RAW_MAX"]
+__all__ = ["EscOutput", "EscReport", "RAW_MAX", "ESC_STATUS_PERIOD_US", "ESC_STATUS_TIMEOUT_US"]
 
 RAW_MAX: Final = 8191
 MAX_ESCS: Final = 8
 COMMAND_INTERVAL_US: Final = 5_000
+ESC_STATUS_PERIOD_US: Final = 100_000
+ESC_STATUS_TIMEOUT_US: Final = 1_200_000
+#: esc_status.esc_connectiontype of ESCs on CAN (PX4's ESC_CONNECTION_TYPE_CAN)
+CONNECTION_TYPE_CAN: Final = 4
 
 
 class EscReport:
@@ -54,6 +61,7 @@ class EscOutput:
         self.mixer_path = ""
         self.commands_tx = 0
         self.last_raw: list[int] = []
+        self.status_published = 0
         self.reports: dict[int, EscReport] = {}
         self._controls: list[float] = [0.0] * 8
 
@@ -100,3 +108,40 @@ class EscOutput:
         r.temperature_c = float(s.temperature) - 273.15
         r.rpm = int(s.rpm)
         r.power_pct = int(s.power_rating_pct)
+
+    def esc_count(self) -> int:
+        """The ESCs this output drives: the mixer's outputs (0 before ``mixer load``)."""
+        return min(self.group.output_count, MAX_ESCS)
+
+    def online_flags(self, now_us: int) -> int:
+        """Bit i set while ESC index i's esc.Status arrives within ESC_STATUS_TIMEOUT_US."""
+        flags = 0
+        for idx, r in self.reports.items():
+            if idx < MAX_ESCS and now_us - r.last_us < ESC_STATUS_TIMEOUT_US:
+                flags |= 1 << idx
+        return flags
+
+    def fill_status(self, m: Any, now_us: int) -> None:
+        """``esc_status`` from the latest esc.Status of each ESC index (PX4's field meanings;
+        zero for an index never heard)."""
+        m.timestamp = now_us
+        self.status_published += 1
+        m.counter = self.status_published & 0xFFFF
+        m.esc_count = self.esc_count()
+        m.esc_connectiontype = CONNECTION_TYPE_CAN
+        m.esc_online_flags = self.online_flags(now_us)
+        m.esc_armed_flags = sum(1 << i for i, raw in enumerate(self.last_raw[:MAX_ESCS]) if raw > 0)
+        for idx in range(MAX_ESCS):
+            e = m.esc[idx]
+            r = self.reports.get(idx)
+            if r is None:
+                continue
+            e.timestamp = r.last_us
+            e.esc_errorcount = r.error_count & 0xFFFFFFFF
+            e.esc_rpm = r.rpm
+            e.esc_voltage = r.voltage_v
+            e.esc_current = r.current_a
+            e.esc_temperature = r.temperature_c
+            e.esc_address = r.node_id
+            e.esc_state = r.power_pct
+            e.esc_power = min(r.power_pct, 100)

@@ -117,8 +117,13 @@ class UavcanModule(WorkItemModule):
         self._controls_sub: Any = None
         self._armed_sub: Any = None
         self._armed = False
+        self._esc_pub: Any = None
+        self._esc_msg: Any = None
+        self._next_esc_status_us = 0
+        self._esc_status_period_us = 0
         if mode >= 3:  # ESCs on CAN: RawCommand from the FMU's own mixer (esc_output.py)
-            from firmware.drivers.uavcan.esc_output import COMMAND_INTERVAL_US, EscOutput
+            from firmware.drivers.uavcan.esc_output import (COMMAND_INTERVAL_US,
+                                                            ESC_STATUS_PERIOD_US, EscOutput)
 
             self.stack.esc = EscOutput(int(self.param("UAVCAN_EC_MIN")),
                                        int(self.param("UAVCAN_EC_MAX")))
@@ -126,6 +131,9 @@ class UavcanModule(WorkItemModule):
             self._controls_sub = self.subscribe_callback(
                 self.work_item, "actuator_controls_0", interval_us=COMMAND_INTERVAL_US)
             self._armed_sub = self.subscribe("actuator_armed")
+            self._esc_pub = self.advertise("esc_status")
+            self._esc_msg = self.platform.orb.new("esc_status")
+            self._esc_status_period_us = ESC_STATUS_PERIOD_US
         self._pub = self.advertise("can_interface_status")
         self._msg = self.platform.orb.new("can_interface_status")
         ctrl.on_receive(self._rx_isr)
@@ -183,6 +191,8 @@ class UavcanModule(WorkItemModule):
         stack.tick(now)
         if self._controls_sub is not None:
             self._esc_output(now)
+            if now >= self._next_esc_status_us:
+                self._publish_esc_status(now)
         state = _STATES[self.ctrl.state]
         if self._in_bus_off and state != 2:
             self._in_bus_off = False
@@ -202,6 +212,16 @@ class UavcanModule(WorkItemModule):
         if raw and self.stack.send_esc_command(raw, now):
             esc.commands_tx += 1
             esc.last_raw = raw
+
+    def _publish_esc_status(self, now: int) -> None:
+        """``esc_status`` at 10 Hz once an ESC has reported (a board without CAN ESCs on the
+        bus publishes nothing, so its log has no esc_status data)."""
+        self._next_esc_status_us = now + self._esc_status_period_us
+        esc = self.stack.esc
+        if esc is None or not esc.reports:
+            return
+        esc.fill_status(self._esc_msg, now)
+        self._esc_pub.publish(self._esc_msg)
 
     def custom_command(self, args: list[str]) -> int:
         """``uavcan mixer FILE`` (what ``mixer load /dev/uavcan/esc FILE`` calls): the CAN ESC

@@ -21,6 +21,7 @@ from firmware.modules.commander import failsafe as fs
 from firmware.modules.commander import modes
 from firmware.modules.commander.checks import Failure, VehicleData, preflight_failures
 from firmware.modules.commander.commands import CommandHandler
+from firmware.modules.commander.esc_check import EscCheck
 from firmware.modules.commander.failure_detector import FAILURE_DETECTOR_PARAMS, FailureDetector
 from firmware.modules.commander.geofence import GEOFENCE_PARAMS, Geofence
 from firmware.modules.commander.params import PARAMS
@@ -105,6 +106,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._sub_result = self.subscribe("mission_result")
         self._sub_mission = self.subscribe("mission")
         self._sub_param = self.subscribe("parameter_update")
+        self.esc_check = EscCheck(self)
         self._pub_status = self.advertise("vehicle_status")
         self._pub_mode = self.advertise("vehicle_control_mode")
         self._pub_armed = self.advertise("actuator_armed")
@@ -161,6 +163,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
                 and self.nav_state == modes.AUTO_TAKEOFF):
             self.user_nav = modes.AUTO_LOITER   # takeoff done: hold there
         self._update_battery()
+        self.esc_check.update()
         if self.arming_state == ARMED:
             self._update_in_air(now)
             fd = self.failure_detector
