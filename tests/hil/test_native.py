@@ -11,6 +11,7 @@ build it twice).
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import subprocess
@@ -79,6 +80,61 @@ def test_compiled_list_covers_the_hot_path() -> None:
                 "firmware/platform/uorb.py", "firmware/platform/workqueue.py",
                 "firmware/drivers/imu/mpu6000.py", "ioproc/firmware/mixer_tick.py"):
         assert hot in native.COMPILED
+
+
+def _classes_and_bases(rel: str) -> list[tuple[str, list[tuple[str, str]], bool]]:
+    """Each class of a board module: its name, its bases as (module file, class name) where
+    they come from the board packages, and whether it allows interpreted subclasses."""
+    tree = ast.parse((native.ROOT / rel).read_text())
+    imported: dict[str, tuple[str, str]] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if node.level:
+                mod = ".".join(rel[:-3].split("/")[:-node.level] + ([mod] if mod else []))
+            for alias in node.names:
+                imported[alias.asname or alias.name] = (mod.replace(".", "/") + ".py", alias.name)
+    local = {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
+    out = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ClassDef):
+            continue
+        bases = [imported[b.id] if b.id in imported else (rel, b.id)
+                 for b in node.bases if isinstance(b, ast.Name)
+                 and (b.id in imported or b.id in local)]
+        bases = [(f, c) for f, c in bases if (native.ROOT / f).exists()]
+        allows = "allow_interpreted_subclasses" in ast.unparse(node.decorator_list) \
+            if node.decorator_list else False
+        out.append((node.name, bases, allows))
+    return out
+
+
+def test_fast_modules_compile_as_a_closed_set() -> None:
+    """What mypyc needs of the fast-module list, checked without building: a compiled class's
+    bases are compiled (mypyc cannot extend a Python class), and a compiled class that an
+    ordinary module subclasses allows it (else importing that module raises TypeError)."""
+    compiled = set(native.COMPILED)
+    allows: dict[tuple[str, str], bool] = {}
+    every = sorted(p.relative_to(native.ROOT).as_posix() for pkg in native.PACKAGES
+                   for p in (native.ROOT / pkg).rglob("*.py") if "__pycache__" not in p.parts)
+    assert compiled <= set(every), compiled - set(every)
+    table = {rel: _classes_and_bases(rel) for rel in every}
+    for rel, classes in table.items():
+        for name, _bases, allow in classes:
+            allows[(rel, name)] = allow
+    for rel in sorted(compiled):
+        for name, bases, _ in table[rel]:
+            for base in bases:
+                assert base[0] in compiled, f"{rel}: {name} extends {base}, which is not compiled"
+    for rel in every:
+        if rel in compiled:
+            continue
+        for name, bases, _ in table[rel]:
+            for base in bases:
+                if base[0] in compiled:
+                    assert allows.get(base, False), \
+                        f"{rel}: {name} extends compiled {base[1]} ({base[0]}), which lacks " \
+                        "@mypyc_attr(allow_interpreted_subclasses=True)"
 
 
 def _child_env(extra: dict[str, str]) -> dict[str, str]:
