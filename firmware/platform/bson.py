@@ -12,8 +12,6 @@ from __future__ import annotations
 import struct
 from typing import Final
 
-from mypy_extensions import mypyc_attr
-
 __all__ = ["BsonError", "encode", "decode", "INT32", "DOUBLE", "INT32_MIN", "INT32_MAX"]
 
 DOUBLE, STRING, BINDATA, BOOL, INT32, INT64, END, ERASED = 0x01, 0x02, 0x05, 0x08, 0x10, 0x12, \
@@ -29,7 +27,6 @@ _FIXED: dict[int, struct.Struct] = {INT32: _I32, DOUBLE: struct.Struct("<d"),
                                     INT64: struct.Struct("<q"), BOOL: struct.Struct("<?")}
 
 
-@mypyc_attr(native_class=False)
 class BsonError(ValueError):
     """A document that cannot be encoded or decoded; the message says what and where."""
 

@@ -1,6 +1,5 @@
-"""The :class:`Platform` of a board (see the package docstring); a module of its own so that the
-compiled tier compiles it (``__init__`` modules stay Python): ``time_us`` is the hottest call
-of the flight stack's modules."""
+"""The :class:`Platform` of a board (see the package docstring): the kernel's services as PX4's
+modules see them (HRT, uORB, work queues, perf counters, the log)."""
 
 from __future__ import annotations
 

@@ -25,8 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from mypy_extensions import mypyc_attr
-
 __all__ = ["FieldDef", "MessageDef", "MessageRegistry", "MsgError", "default_registry",
            "snake_to_camel"]
 
@@ -58,7 +56,6 @@ _NAME_RE: Final = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _TYPE_RE: Final = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
 
 
-@mypyc_attr(native_class=False)
 class MsgError(ValueError):
     """A malformed .msg definition; the message names the file and line."""
 

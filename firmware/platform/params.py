@@ -31,13 +31,12 @@ import zlib
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Final, Iterable, Literal, Protocol, overload
 
-from mypy_extensions import mypyc_attr
-
 from firmware.platform import bson
 from firmware.platform.bson import INT32_MAX, INT32_MIN
 
 if TYPE_CHECKING:
     from firmware.platform import Platform
+    from firmware.platform.hrt import HrtCall
 
 __all__ = ["ParamDef", "Params", "ParamError", "ParamStorage", "MemoryPartition",
            "export_qgc", "import_qgc", "markdown_reference", "f32", "FLT_MAX", "INT32_MIN",
@@ -46,7 +45,6 @@ __all__ = ["ParamDef", "Params", "ParamError", "ParamStorage", "MemoryPartition"
 MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 6, 9
 
 
-@mypyc_attr(native_class=False)
 class ParamError(ValueError):
     pass
 
@@ -294,7 +292,7 @@ class Params:
         self.values: dict[str, int | float] = {n: d.default for n, d in self.defs.items()}
         self.storage = storage
         self.autosave_delay_us = autosave_delay_us
-        self._autosave: Any = None
+        self._autosave: HrtCall | None = None
         self._pub = platform.orb.advertise("parameter_update")
         self._msg = platform.orb.new("parameter_update")
         self.set_count = 0
