@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Final
 
-from mypy_extensions import mypyc_attr
-
 from firmware.system import PathError
 
 if TYPE_CHECKING:
@@ -58,7 +56,6 @@ def cmd_false(sh: Shell, argv: list[str]) -> int:
     return 1
 
 
-@mypyc_attr(native_class=False)
 class _TestError(ValueError):
     pass
 

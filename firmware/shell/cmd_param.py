@@ -110,8 +110,8 @@ def _load_file(sh: Shell, params: Params, name: str) -> int:
         return 1
     try:
         loaded, skipped = params.load_document(data, name)
-    except BsonError as exc2:
-        sh.error("param load", f"{name}: not a PX4 parameter file ({exc2}); nothing changed")
+    except BsonError as exc:
+        sh.error("param load", f"{name}: not a PX4 parameter file ({exc}); nothing changed")
         return 1
     sh.print(f"loaded {loaded} parameters from {name}"
              + (f", {skipped} skipped (see dmesg)" if skipped else ""))
@@ -210,8 +210,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(export_qgc(params))
-        except OSError as exc2:
-            sh.error("param export", f"{args[0]}: {exc2.strerror or exc2}")
+        except OSError as exc:
+            sh.error("param export", f"{args[0]}: {exc.strerror or exc}")
             return 1
         sh.print(f"exported {len(params.names)} parameters to {args[0]}")
         return 0
@@ -221,8 +221,8 @@ def cmd_param(sh: Shell, argv: list[str]) -> int:
             return 1
         try:
             text = sh.read_text(path)
-        except OSError as exc2:
-            sh.error("param import", f"{args[0]}: {exc2.strerror or exc2}")
+        except OSError as exc:
+            sh.error("param import", f"{args[0]}: {exc.strerror or exc}")
             return 1
         count, problems = import_qgc(params, text)
         for p in problems:

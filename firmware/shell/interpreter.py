@@ -30,8 +30,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
-from mypy_extensions import mypyc_attr
-
 from firmware.shell.parser import (ShellLimitError, ShellSyntaxError, Word, split_statements,
                                    tokenize)
 
@@ -63,7 +61,6 @@ class Command:
     summary: str
 
 
-@mypyc_attr(native_class=False)
 class NotATextFile(OSError):
     """A file that is not UTF-8 text (a binary on the SD card given to ``sh``, ``cat`` or ``param
     import``): an OSError, so every command's existing ``except OSError`` reports it."""
@@ -73,7 +70,6 @@ class NotATextFile(OSError):
         self.byte_offset = byte_offset
 
 
-@mypyc_attr(native_class=False)
 class _ExitScript(Exception):
     def __init__(self, status: int) -> None:
         self.status = status

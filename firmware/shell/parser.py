@@ -19,8 +19,6 @@ import re
 from collections.abc import Callable
 from typing import Final
 
-from mypy_extensions import mypyc_attr
-
 __all__ = ["MAX_LINE_CHARS", "OPERATORS", "ShellLimitError", "ShellSyntaxError", "Word",
            "split_statements", "tokenize"]
 
@@ -33,12 +31,10 @@ _VAR: Final = re.compile(r"\$(?:\{([A-Za-z_][A-Za-z0-9_]*|[0-9]+|[?#])\}|([A-Za-
                   r"|([0-9?#]))")
 
 
-@mypyc_attr(native_class=False)
 class ShellSyntaxError(ValueError):
     """A line that cannot be split into words (an unterminated quote, a dangling operator)."""
 
 
-@mypyc_attr(native_class=False)
 class ShellLimitError(ShellSyntaxError):
     """Input beyond one of nsh's fixed limits (line length, ``if`` nesting, the length of an
     expanded word). Its message is nsh's, without the ``syntax error`` prefix."""
