@@ -63,12 +63,14 @@ class GpsDriver(SensorDriver):
     JAMMING_REPORT = 80
     EPH_DEGRADED_M = 5.0
 
-    cpu_cost_ns = 40_000
-
     def __init__(self, platform: Platform, uart: Uart, name: str = "gps", device_index: int = 0,
                  *, tty: str = "ttyS3", rate_ms: int = 200, dyn_model: int = 8,
                  gnss_systems: int = 0, sat_info: bool = False) -> None:
         super().__init__(platform, name, f"wq:{tty}")
+        # Set per instance: compiled by mypyc, a class-level override of WorkItem's default
+        # is not seen, and the compiled tier modelled the driver's runs as free (cpuload
+        # showed it: 1.1 ms less busy time on wq:ttyS3 in 3 s than the pure modules).
+        self.cpu_cost_ns = 40_000
         self.uart = uart
         self.device_index = device_index
         self.rate_ms = rate_ms
