@@ -123,13 +123,36 @@ def _stream(v, seconds, pos=None, vel=None, yaw=0.0, rate_hz=20, until=None):
     return n / rate_hz
 
 
+ATT_ONLY = 0b0000_0111   # the attitude and thrust used; body rates ignored
+RATES_ONLY = 0b1000_0000  # the body rates and thrust used; the attitude ignored
+
+
+def _stream_attitude(v, seconds, q=(1.0, 0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0), thrust=0.5,
+                     rate_hz=50):
+    """SET_ATTITUDE_TARGET at ``rate_hz`` for ``seconds`` of virtual time: the attitude when
+    ``rates`` is all zero, else the body rates (attitude ignored)."""
+    mask = RATES_ONLY if any(rates) else ATT_ONLY
+    for _ in range(int(seconds * rate_hz)):
+        v.gcs.send(mav.MAVLink_set_attitude_target_message(
+            0, 1, 1, mask, list(q), rates[0], rates[1], rates[2], thrust))
+        v.run(1.0 / rate_hz)
+
+
+def _yaw(v):
+    """The estimator's heading (rad)."""
+    v.sampler.new_sample()
+    w, x, y, z = v.sampler.topic("vehicle_attitude")["q"]
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 @pytest.mark.slow
 def test_offboard_square_velocity_and_loss(hil_vehicle):
     """pymavlink as an offboard companion, PX4's rules (in one flight, to keep it short):
     without a setpoint stream the switch to Offboard is refused; with one at 20 Hz it is
     accepted; a square of four 5 m position setpoints at 4 m is flown corner by corner (each
     reached within 1 m); 1 m/s north in velocity setpoints moves the vehicle north at about
-    that speed; when the stream stops, after COM_OF_LOSS_T (1 s) the commander says so and
+    that speed; an attitude setpoint (heading east) is flown, then body rates (0.5 rad/s yaw)
+    reach the rate controller unchanged; when the stream stops, after COM_OF_LOSS_T (1 s) the commander says so and
     flies COM_OBL_RC_ACT's mode (0: Position, RC being there)."""
     v = hil_vehicle
     gcs = v.gcs
@@ -174,6 +197,26 @@ def test_offboard_square_velocity_and_loss(hil_vehicle):
     speed_n = (lp["x"] - xa) / (v.t_s - ta)
     assert 0.75 < speed_n < 1.25, speed_n
     assert abs(lp["vy"]) < 0.3 and abs(lp["z"] - z0) < 1.0
+
+    # (3b) attitude: level, heading 90 deg east, hover thrust; the vehicle turns to it
+    hover = v.read("topic.hover_thrust_estimate.hover_thrust") or 0.5
+    east = (math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4))
+    _stream_attitude(v, 3.0, q=east, thrust=hover)
+    yaw = _yaw(v)
+    assert abs(math.remainder(yaw - math.pi / 2, 2 * math.pi)) < math.radians(10), \
+        math.degrees(yaw)
+    assert abs(_lpos(v)["z"] - z0) < 1.5
+
+    # (3c) body rates (attitude ignored): 0.5 rad/s yaw, level, hover thrust; the rate
+    # controller gets them unchanged (mc_att_control stands aside, as PX4), the vehicle turns
+    _stream_attitude(v, 0.5, rates=(0.0, 0.0, 0.5), thrust=hover)
+    y0, t0 = _yaw(v), v.t_s
+    _stream_attitude(v, 1.0, rates=(0.0, 0.0, 0.5), thrust=hover)
+    rate = math.remainder(_yaw(v) - y0, 2 * math.pi) / (v.t_s - t0)
+    assert 0.35 < rate < 0.65, rate
+    sp = v.read("topic.vehicle_rates_setpoint.yaw")
+    assert abs(sp - 0.5) < 1e-6, sp
+    assert v.read("nav_state").lower() == "offboard"
 
     # (4) the stream stops: COM_OF_LOSS_T (1 s) later the failsafe takes over
     took = v.wait_for("nav_state != Offboard", within=1.6, step=0.05)

@@ -126,6 +126,9 @@ class McAttControlModule(WorkItemModule):
         self.yawspeed_ff = 0.0
         self.reset_integral = False
         self.stabilized = False
+        #: vehicle_control_mode.flag_control_attitude_enabled: off when an offboard companion
+        #: sends body rates, which must then reach the rate controller unchanged (as PX4)
+        self.attitude_enabled = True
         self.armed = False
         self.landed = True
         self.man_yaw_sp = 0.0
@@ -177,6 +180,7 @@ class McAttControlModule(WorkItemModule):
     def _poll(self) -> None:
         m = self.sub_mode.update()
         if m is not None:
+            self.attitude_enabled = bool(m.flag_control_attitude_enabled)
             self.stabilized = bool(m.flag_control_attitude_enabled
                                    and m.flag_control_manual_enabled
                                    and not m.flag_control_climb_rate_enabled
@@ -267,6 +271,8 @@ class McAttControlModule(WorkItemModule):
         self.last_att_us = t
         if dt <= 0.0 or dt > 0.1:
             dt = 0.004
+        if not self.attitude_enabled:
+            return  # rates only (offboard body rates): the rate setpoint is someone else's
         if self.stabilized:
             self._stabilized_setpoint(q, dt)
         if not self.have_sp:
