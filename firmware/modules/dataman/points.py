@@ -53,21 +53,27 @@ class Point(NamedTuple):
     vertex_count: int = 0  # polygon vertices (param1 of a vertex), else 0
     radius_m: float = 0.0  # circle radius (param1 of a circle), else 0
 
+    @property
+    def lat(self) -> float:
+        return self.lat_e7 / 1e7
+
+    @property
+    def lon(self) -> float:
+        return self.lon_e7 / 1e7
+
+    def pack(self) -> bytes:
+        return _ITEM.pack(self.nav_cmd, self.lat_e7, self.lon_e7, self.alt_m,
+                          int(self.relative), self.vertex_count, self.radius_m)
+
+    @staticmethod
+    def unpack(data: bytes) -> Point:
+        cmd, lat, lon, alt, rel, n, r = _ITEM.unpack(data)
+        return Point(int(cmd), int(lat), int(lon), float(alt), bool(rel), int(n), float(r))
+
 
 def lat_lon_deg(p: Point) -> tuple[float, float]:
-    """A point's position in degrees. (Functions, not methods: the class stays a plain
-    NamedTuple for the compiled tier.)"""
-    return p.lat_e7 / 1e7, p.lon_e7 / 1e7
-
-
-def _pack(p: Point) -> bytes:
-    return _ITEM.pack(p.nav_cmd, p.lat_e7, p.lon_e7, p.alt_m, int(p.relative), p.vertex_count,
-                      p.radius_m)
-
-
-def _unpack(data: bytes) -> Point:
-    cmd, lat, lon, alt, rel, n, r = _ITEM.unpack(data)
-    return Point(int(cmd), int(lat), int(lon), float(alt), bool(rel), int(n), float(r))
+    """``(p.lat, p.lon)``: a point's position in degrees, as one value."""
+    return p.lat, p.lon
 
 
 class FenceProblem(NamedTuple):
@@ -187,12 +193,11 @@ def polygons_and_circles(points: Sequence[Point]) -> tuple[
     while i < len(points):
         p = points[i]
         if p.nav_cmd in _POLYGON and p.vertex_count > 0:
-            polygons.append((p.nav_cmd, [lat_lon_deg(q) for q in points[i:i + p.vertex_count]]))
+            polygons.append((p.nav_cmd, [(q.lat, q.lon) for q in points[i:i + p.vertex_count]]))
             i += p.vertex_count
             continue
         if p.nav_cmd in _CIRCLE:
-            lat, lon = lat_lon_deg(p)
-            circles.append((p.nav_cmd, lat, lon, p.radius_m))
+            circles.append((p.nav_cmd, p.lat, p.lon, p.radius_m))
         i += 1
     return polygons, circles
 
@@ -255,7 +260,7 @@ class PointStore:
                 raise StoreError(f"dataman: {problem.text}")
         counter = (self.update_counter + 1) & 0xFFFF
         try:
-            body = b"".join(_pack(p) for p in new)
+            body = b"".join(p.pack() for p in new)
         except (struct.error, OverflowError):
             raise StoreError(f"dataman: a {self.name} item the storage cannot hold") from None
         if not self.records.write((len(new), counter), body):
@@ -279,7 +284,7 @@ class PointStore:
             return f"no {self.name} stored{note}"
         (count, counter), body = got
         size = _ITEM.size
-        points = tuple(_unpack(body[i * size:(i + 1) * size]) for i in range(count))
+        points = tuple(Point.unpack(body[i * size:(i + 1) * size]) for i in range(count))
         if self.validate is not None and self.validate(points) is not None:
             return f"{self.name} stored is not valid, ignored{note}"
         self.points, self.update_counter = points, counter

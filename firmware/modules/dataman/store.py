@@ -63,7 +63,9 @@ class MissionStore:
     def __init__(self, partition: Partition | None = None,
                  registry: MessageRegistry | None = None) -> None:
         self.registry = registry or default_registry()
-        self.item_cls = self.registry.cls("mission_item")
+        #: the generated mission_item class (its fields, ``pack`` and ``unpack`` come from the
+        #: .msg definition at run time)
+        self.item_cls: Any = self.registry.cls("mission_item")
         self._item_size = len(self.item_cls().pack())
         self.records = RecordPair(partition, _MAGIC, _META, self._body_len)
         self.slots: list[list[Any]] = [[] for _ in range(MISSION_SLOTS)]

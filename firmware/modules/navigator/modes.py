@@ -53,7 +53,8 @@ class TakeoffMode(NavMode):
         lat, lon, alt = pos
         target = nav.takeoff_alt_cmd
         if target is None or not math.isfinite(target):
-            base = nav.home_alt() if nav.home_alt() is not None else alt
+            home_alt = nav.home_alt()
+            base = home_alt if home_alt is not None else alt
             target = base + nav.p["MIS_TAKEOFF_ALT"]
         if not nav.landed() and alt > target:
             target = alt  # already higher: hold where we are
@@ -85,7 +86,7 @@ class LoiterMode(NavMode):
     def on_activation(self) -> None:
         nav = self.nav
         if nav.reposition is not None:
-            self._reposition()
+            self._reposition(nav.reposition)
             return
         if nav.landed():
             nav.set_idle()
@@ -103,11 +104,12 @@ class LoiterMode(NavMode):
 
     def on_active(self) -> None:
         if self.nav.reposition is not None:
-            self._reposition()
+            self._reposition(self.nav.reposition)
 
-    def _reposition(self) -> None:
+    def _reposition(self, target: tuple[float, float, float, float]) -> None:
+        """Hold at DO_REPOSITION's ``(lat, lon, alt, yaw)``; NaN keeps that part as it is."""
         nav = self.nav
-        lat, lon, alt, yaw = nav.reposition
+        lat, lon, alt, yaw = target
         nav.reposition = None
         pos = nav.position()
         cur = nav.triplet.current

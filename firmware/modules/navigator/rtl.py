@@ -71,17 +71,15 @@ class RtlMode(NavMode):
                      ) -> tuple[float, float, float, float]:
         """Home, or the closest rally point if one is closer than home (RTL_TYPE 0)."""
         from firmware.modules.dataman import find_rally
-        from firmware.modules.dataman.points import lat_lon_deg
 
         store = find_rally(self.nav.system)
         best, best_dist = home, distance_m(pos[0], pos[1], home[0], home[1])
         chosen = -1
         for i, rp in enumerate(store.points if store is not None else ()):
-            lat, lon = lat_lon_deg(rp)
-            d = distance_m(pos[0], pos[1], lat, lon)
+            d = distance_m(pos[0], pos[1], rp.lat, rp.lon)
             if d < best_dist:
                 alt = home[2] + rp.alt_m if rp.relative else rp.alt_m
-                best, best_dist, chosen = (lat, lon, alt, home[3]), d, i
+                best, best_dist, chosen = (rp.lat, rp.lon, alt, home[3]), d, i
         if chosen >= 0:
             self.nav.info(f"Return: to rally point {chosen}, {best_dist:.0f} m away")
         self.rally_index = chosen
