@@ -71,18 +71,16 @@ class TaskOffboard(_Task):
 
     def input_valid(self) -> bool:
         """PX4's PositionControl::_inputValid on the offboard setpoint."""
-        p, v, a = self.sp_pos, self.sp_vel, self.sp_acc
-        fin = math.isfinite
-        for i in range(3):
-            if not (fin(p[i]) or fin(v[i]) or fin(a[i])):
-                return False
-        for s in (p, v, a):
-            if fin(s[0]) != fin(s[1]):
-                return False
+        finite = [[math.isfinite(x) for x in sp] for sp in (self.sp_pos, self.sp_vel, self.sp_acc)]
+        p, v, a = finite
+        if not all(pi or vi or ai for pi, vi, ai in zip(p, v, a)):
+            return False  # an axis with no setpoint at any level
+        if any(s[0] != s[1] for s in finite):
+            return False  # x and y are controlled together
         lp = self.ctl.lpos
-        if (fin(p[0]) and not lp.xy_valid) or (fin(p[2]) and not lp.z_valid):
+        if (p[0] and not lp.xy_valid) or (p[2] and not lp.z_valid):
             return False
-        return not ((fin(v[0]) and not lp.v_xy_valid) or (fin(v[2]) and not lp.v_z_valid))
+        return not ((v[0] and not lp.v_xy_valid) or (v[2] and not lp.v_z_valid))
 
     def update(self, dt: float) -> None:
         m = self.ctl.sub_traj.copy() if self.ctl.sub_traj.updated() else None

@@ -27,8 +27,6 @@ from firmware.modules.mc_att_control.quat import Quat, qfrom_dcm_columns
 __all__ = ["G", "PositionControl", "attitude_from_thrust"]
 
 G: Final = 9.80665
-_nan: Final = math.nan
-_isfinite: Final = math.isfinite
 
 
 def attitude_from_thrust(tx: float, ty: float, tz: float, yaw: float) -> Quat:
@@ -89,40 +87,40 @@ class PositionControl:
         v = self.vel_sp
         for i, k in ((0, self.xy_p), (1, self.xy_p), (2, self.z_p)):
             ps, vs = pos_sp[i], vel_sp[i]
-            if _isfinite(ps):
-                v[i] = k * (ps - pos[i]) + (vs if _isfinite(vs) else 0.0)
+            if math.isfinite(ps):
+                v[i] = k * (ps - pos[i]) + (vs if math.isfinite(vs) else 0.0)
             else:
                 v[i] = vs
         vx, vy, vz = v
-        if _isfinite(vx) and _isfinite(vy):
+        if math.isfinite(vx) and math.isfinite(vy):
             n = math.hypot(vx, vy)
             if n > self.vxy_max:
                 s = self.vxy_max / n
                 v[0] = vx = vx * s
                 v[1] = vy = vy * s
-        if _isfinite(vz):
+        if math.isfinite(vz):
             v[2] = vz = -self.vz_up if vz < -self.vz_up else (min(vz, self.vz_dn))
 
         # -- velocity -> acceleration -----------------------------------------------------
         a = self.acc_sp
         ex = ey = ez = 0.0
-        xy_vel = _isfinite(vx) and _isfinite(vy)
+        xy_vel = math.isfinite(vx) and math.isfinite(vy)
         if xy_vel:
             ex, ey = vx - vel[0], vy - vel[1]
             a[0] = self.vxy_p * ex + self.int_x - self.vxy_d * acc[0]
             a[1] = self.vxy_p * ey + self.int_y - self.vxy_d * acc[1]
         else:
             a[0] = a[1] = 0.0
-        if _isfinite(acc_sp[0]) and _isfinite(acc_sp[1]):
+        if math.isfinite(acc_sp[0]) and math.isfinite(acc_sp[1]):
             a[0] += acc_sp[0]
             a[1] += acc_sp[1]
-        z_vel = _isfinite(vz)
+        z_vel = math.isfinite(vz)
         if z_vel:
             ez = vz - vel[2]
             a[2] = self.vz_p * ez + self.int_z - self.vz_d * acc[2]
         else:
             a[2] = self.int_z
-        if _isfinite(acc_sp[2]):
+        if math.isfinite(acc_sp[2]):
             a[2] += acc_sp[2]
 
         # -- acceleration -> thrust ---------------------------------------------------------
