@@ -129,7 +129,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._load_params()
 
     def _load_params(self) -> None:
-        self.p = {d.name: self.param(d.name) for d in self.PARAMS}
+        self.p: dict[str, int | float] = {d.name: self.param(d.name) for d in self.PARAMS}
         self.rc_loss_us = int(self.p["COM_RC_LOSS_T"] * 1e6)
         self.dl_loss_us = int(self.p["COM_DL_LOSS_T"]) * 1_000_000
         self.of_loss_us = int(self.p["COM_OF_LOSS_T"] * 1e6)
@@ -324,10 +324,10 @@ class CommanderModule(CommandHandler, WorkItemModule):
                       or (exc & 2 and user == modes.AUTO_LOITER)
                       or (exc & 4 and user == modes.OFFBOARD))
         if f.update("rc", self.rc_lost and not rc_ignored,
-                    fs.action_from_param(p["NAV_RCL_ACT"]), now, in_air):
+                    fs.action_from_param(int(p["NAV_RCL_ACT"])), now, in_air):
             self.error(f"Failsafe: manual control lost, "
                        f"{fs.ACTION_NAMES_LOWER[f.causes['rc'].action]}")
-        if f.update("datalink", self.dl_lost, fs.action_from_param(p["NAV_DLL_ACT"]), now,
+        if f.update("datalink", self.dl_lost, fs.action_from_param(int(p["NAV_DLL_ACT"])), now,
                     in_air):
             self.error(f"Failsafe: no connection to ground station, "
                        f"{fs.ACTION_NAMES_LOWER[f.causes['datalink'].action]}")

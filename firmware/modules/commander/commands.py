@@ -59,7 +59,7 @@ class CommandHandler:
     # provided by CommanderModule
     arming_state: int
     user_nav: int
-    p: dict[str, Any]
+    p: dict[str, int | float]  # parameter values: int for INT32 parameters, else float
     _reported: set[str]
 
     # -- vehicle_command --------------------------------------------------------------------
