@@ -22,9 +22,12 @@ from __future__ import annotations
 
 import math
 import random
-from typing import Any
+from typing import TYPE_CHECKING
 
 from board.uart_line import FE, PE, LineBreak, UartConfig
+
+if TYPE_CHECKING:
+    from board.uart import Uart
 
 __all__ = ["LineNoise"]
 
@@ -63,7 +66,7 @@ class _Gaps:
 class LineNoise:
     """Bit errors and byte drops on one UART's receiver (see the module docstring)."""
 
-    def __init__(self, uart: Any, bit_error_rate: float = 0.0, drop_rate: float = 0.0,
+    def __init__(self, uart: Uart, bit_error_rate: float = 0.0, drop_rate: float = 0.0,
                  seed: int = 0) -> None:
         for what, v in (("bit_error_rate", bit_error_rate), ("drop_rate", drop_rate)):
             if not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
@@ -92,12 +95,12 @@ class LineNoise:
         return self
 
     @staticmethod
-    def remove(uart: Any) -> None:
+    def remove(uart: Uart) -> None:
         """Clean line again: the UART's own receiver takes the bursts directly."""
         uart.line_noise = None
 
     @staticmethod
-    def installed(uart: Any) -> LineNoise | None:
+    def installed(uart: Uart) -> LineNoise | None:
         noise: LineNoise | None = uart.line_noise
         return noise
 
@@ -107,7 +110,7 @@ class LineNoise:
 
     # -- the noisy receiver -------------------------------------------------------------------
 
-    def on_burst(self, t_start_ns: int, tx_config: UartConfig, data: Any) -> None:
+    def on_burst(self, t_start_ns: int, tx_config: UartConfig, data: bytes | LineBreak) -> None:
         if isinstance(data, LineBreak) or not data:
             self._receive(t_start_ns, tx_config, data)
             return
