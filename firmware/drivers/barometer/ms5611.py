@@ -27,11 +27,12 @@ conversion.
 
 from __future__ import annotations
 
-from typing import Any, Final
+from typing import Final
 
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver, SpiDeviceHandle
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
+from firmware.platform.uorb import Publication
 
 __all__ = ["DRV_BARO_DEVTYPE_MS5611", "Ms5611Driver", "compensate", "crc4"]
 
@@ -123,7 +124,7 @@ class Ms5611Driver(SensorDriver):
         self._last_d1: int | None = None
         self._same_d1 = 0
         self._last_p: float | None = None
-        self._pub: Any = None
+        self._pub: Publication | None = None  # advertised when the driver starts
         self._msg = platform.orb.new("sensor_baro")
         self.last_pressure_pa = float("nan")
         self.last_temperature_c = float("nan")
@@ -258,7 +259,8 @@ class Ms5611Driver(SensorDriver):
         msg.pressure = pressure_pa
         msg.temperature = temperature_c
         msg.error_count = self.error_count
-        self._pub.publish(msg)
+        if self._pub is not None:
+            self._pub.publish(msg)
 
     def status(self) -> str:
         extra = [self.perf_not_ready, self.perf_range, self.perf_stuck, self.perf_step,
