@@ -85,12 +85,13 @@ class Fm25v01(SpiTarget):
     return noise).
     """
 
-    max_clock_hz = 40_000_000
-
     def __init__(self, kernel: Kernel, name: str = "fram", path: str | os.PathLike | None = None,
                  size: int = 16384, wp_pin: Pin | None = None) -> None:
         if type(size) is not int or size < 256 or size & (size - 1):
             raise ValueError(f"{name}: size must be a power of two >= 256 bytes, got {size!r}")
+        # Set on the instance: the compiled SpiTarget reads its own declared default (None, no
+        # limit) and would not see a class attribute of this ordinary module.
+        self.max_clock_hz = 40_000_000
         self.kernel = kernel
         self.name = name
         self.size = size
