@@ -22,14 +22,13 @@ import calendar
 import math
 from collections.abc import Generator
 from dataclasses import dataclass
-from typing import Any
-
 from board.uart import Uart, UartConfig
 from firmware.drivers.device import BUS_TYPE_SERIAL, DeviceId, SensorDriver
 from firmware.drivers.gps import ubx
 from firmware.drivers.gps.ubx import MonVer, NavPvt, UbxParser
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
+from firmware.platform.uorb import Publication
 
 __all__ = ["DEVTYPE_UBX", "DEVTYPE_UBX_8", "GpsDriver"]
 
@@ -91,7 +90,7 @@ class GpsDriver(SensorDriver):
         self.last_pvt: NavPvt | None = None
         self._wait: _Wait | None = None
         self._proc: Generator[_Wait, bool | None, None] | None = None
-        self._pub: Any = None
+        self._pub: Publication | None = None  # advertised with the first fix
         self._msg = platform.orb.new("sensor_gps")
         self._msg.heading = self._msg.heading_offset = math.nan
         self._last_pvt_us = 0
@@ -135,7 +134,8 @@ class GpsDriver(SensorDriver):
     # -- one run: read, parse, advance the sequence ------------------------------------------
 
     def run(self) -> None:
-        if not self.running or self._proc is None:
+        proc = self._proc
+        if not self.running or proc is None:
             return
         self.perf_cycle.begin()
         data = self.uart.read()
@@ -146,10 +146,11 @@ class GpsDriver(SensorDriver):
             for _ in range(bad - self._seen_bad):
                 self.perf_bad_checksum.count()
             self._seen_bad = bad
-        self._advance()
+        self._advance(proc)
         self.perf_cycle.end()
 
-    def _advance(self) -> None:
+    def _advance(self, proc: Generator[_Wait, bool | None, None]) -> None:
+        """Step the configuration sequence ``proc`` past every wait that has ended."""
         now = self.platform.time_us()
         while self._wait is not None:
             w = self._wait
@@ -158,7 +159,7 @@ class GpsDriver(SensorDriver):
             if w.result is None and now < w.deadline_us:
                 self.schedule_delayed(w.deadline_us - now)
                 return
-            self._wait = self._proc.send(w.result)  # the generator never returns
+            self._wait = proc.send(w.result)  # the generator never returns
 
     # -- helpers the sequence uses -----------------------------------------------------------
 
@@ -358,9 +359,10 @@ class GpsDriver(SensorDriver):
         msg.vel_ned_valid = True
         msg.time_utc_usec = self._utc_us(pvt)
         msg.timestamp_time_relative = 0
-        if self._pub is None:
-            self._pub = self.platform.orb.advertise("sensor_gps", self.device_index)
-        self._pub.publish(msg)
+        pub = self._pub
+        if pub is None:
+            pub = self._pub = self.platform.orb.advertise("sensor_gps", self.device_index)
+        pub.publish(msg)
         self.publish_count += 1
         self.perf_interval.count()
         self._report(pvt, fix_ok, prev, prev_us, now)
