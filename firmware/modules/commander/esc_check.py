@@ -5,7 +5,8 @@ drives report (``esc_online_flags``). As PX4, the commander warns only when an E
 online to offline (ESCs that have not reported yet at boot are no news), with a critical
 "ESC2 offline" STATUSTEXT naming every ESC now missing, and keeps ``escs_error`` set while
 any is missing (what PX4 keeps in ``condition_escs_error`` and its health report). When all
-are online again it says so once. The ESCs' failure bits raise ``escs_failure``.
+are online again it says "All ESCs online" once (an info message of this tree; PX4 only
+clears its flag). The ESCs' failure bits raise ``escs_failure``.
 
 Not modelled: PX4's arming check on offline ESCs (COM_ARM_CHK_ESCS) and the per-failure-bit
 messages (DroneCAN's esc.Status carries an error count, no failure bits).
