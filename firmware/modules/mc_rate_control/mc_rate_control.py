@@ -1,22 +1,19 @@
-"""Multicopter body-rate controller: PID per axis, run on every gyro sample.
+"""Multicopter body-rate controller (PX4's ``MulticopterRateControl``), run on every gyro sample.
 
-This is the innermost loop of the cascade and the only one that sees the gyro at its full rate
-(vehicle_angular_velocity, ~1 kHz from the MPU6000), so the work per sample is kept to plain
-float arithmetic on attributes: no numpy, no lists built, no allocation beyond the published
-snapshot the uORB broker takes.
+This is the innermost loop of the cascade and the only one that sees the gyro at its control
+rate (vehicle_angular_velocity, IMU_GYRO_RATEMAX). As in PX4 the control law lives in the
+:class:`~firmware.lib.rate_control.RateControl` library (PID + FF on 3-vectors, integrator
+limits, anti-windup); this module is the uORB glue around it:
 
-Control law per axis (PX4's parallel form with a common gain K):
-
-    u = K * (P * e + I_state - D * d(rate)/dt) + FF * rate_sp,    e = rate_sp - rate
-
-* D acts on the measurement (not the error), so a setpoint step gives no derivative kick; the
-  derivative is low-pass filtered (``MC_DTERM_CUTOFF``) because the raw difference of 1 kHz gyro
-  samples is mostly noise.
-* The integrator is clamped to ``MC_xR_INT_LIM`` and is frozen on an axis while the mixer
-  saturates in the direction the integrator would push (anti-windup). The IO's mixer is not
-  visible from here (2014 IO: the FMU sends controls only), so saturation is predicted with the
-  quad-X mixing of the controls just computed: a motor command outside [0, 1] means saturated.
-* Integrators are reset while landed or disarmed, so ground contact never winds them up.
+* gains from ``MC_*RATE_P/I/D/FF`` times the common ``MC_*RATE_K`` (PX4's parallel form with a
+  common gain), integrator limits from ``MC_*R_INT_LIM``;
+* the D term acts on the derivative of the measured rate, low-pass filtered here
+  (``MC_DTERM_CUTOFF``) because the raw difference of gyro samples is mostly noise;
+* anti-windup needs the mixer's saturation. The IO's mixer is not visible from here (2014 IO:
+  the FMU sends controls only), so saturation is predicted with the quad-X mixing of the
+  controls just computed (a motor command outside [0, 1] means saturated) and handed to the
+  library between its torque and integral halves (see its docstring);
+* integrators are reset while landed or disarmed, so ground contact never winds them up.
 
 Rate setpoints come from ``vehicle_rates_setpoint`` (the attitude controller), or in acro mode
 from the sticks (``MC_ACRO_*_MAX``). Output: ``actuator_controls_0`` (roll, pitch, yaw in
@@ -29,6 +26,8 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
+from firmware.lib.rate_control import RateControl
+from firmware.lib.vector3 import Vector3
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
 
@@ -89,13 +88,14 @@ class McRateControlModule(WorkItemModule):
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
+        self.rate_control = RateControl()
         self._reset_state()
 
     def _reset_state(self) -> None:
-        self.ir = self.ip = self.iy = 0.0          # integrator states (control units)
-        self.dr = self.dp = self.dy = 0.0          # filtered rate derivatives
-        self.lr = self.lp = self.ly = 0.0          # previous rates
-        self.sr = self.sp = self.sy = 0.0          # rate setpoint
+        self.rate_control.reset_integral()
+        self.rates_sp = Vector3()                  # rad/s
+        self.rate_prev = Vector3()                 # the last measured rate, rad/s
+        self.rate_deriv = Vector3()                # its filtered derivative, rad/s^2
         self.thrust = 0.0
         self.last_sample_us = 0
         self.armed = False
@@ -122,23 +122,22 @@ class McRateControlModule(WorkItemModule):
         self._load_params()
 
     def _load_params(self) -> None:
-        """Copy the parameters into attributes (the hot path never touches the param table)."""
+        """Hand the gains to the library (the hot path never touches the param table)."""
         p = self.param
-        kr, kp, ky = p("MC_ROLLRATE_K"), p("MC_PITCHRATE_K"), p("MC_YAWRATE_K")
-        self.kpr, self.kip_r, self.kdr = kr * p("MC_ROLLRATE_P"), kr * p("MC_ROLLRATE_I"), \
-            kr * p("MC_ROLLRATE_D")
-        self.kpp, self.kip_p, self.kdp = kp * p("MC_PITCHRATE_P"), kp * p("MC_PITCHRATE_I"), \
-            kp * p("MC_PITCHRATE_D")
-        self.kpy, self.kip_y, self.kdy = ky * p("MC_YAWRATE_P"), ky * p("MC_YAWRATE_I"), \
-            ky * p("MC_YAWRATE_D")
-        self.ffr, self.ffp, self.ffy = (p("MC_ROLLRATE_FF"), p("MC_PITCHRATE_FF"),
-                                        p("MC_YAWRATE_FF"))
-        self.limr, self.limp, self.limy = p("MC_RR_INT_LIM"), p("MC_PR_INT_LIM"), \
-            p("MC_YR_INT_LIM")
+        k = Vector3(p("MC_ROLLRATE_K"), p("MC_PITCHRATE_K"), p("MC_YAWRATE_K"))
+        rc = self.rate_control
+        rc.set_pid_gains(
+            k.emult(Vector3(p("MC_ROLLRATE_P"), p("MC_PITCHRATE_P"), p("MC_YAWRATE_P"))),
+            k.emult(Vector3(p("MC_ROLLRATE_I"), p("MC_PITCHRATE_I"), p("MC_YAWRATE_I"))),
+            k.emult(Vector3(p("MC_ROLLRATE_D"), p("MC_PITCHRATE_D"), p("MC_YAWRATE_D"))))
+        rc.set_feed_forward_gain(Vector3(p("MC_ROLLRATE_FF"), p("MC_PITCHRATE_FF"),
+                                         p("MC_YAWRATE_FF")))
+        rc.set_integrator_limit(Vector3(p("MC_RR_INT_LIM"), p("MC_PR_INT_LIM"),
+                                        p("MC_YR_INT_LIM")))
         self.dcut_hz = float(p("MC_DTERM_CUTOFF"))
         d2r = math.pi / 180.0
-        self.acro_max = (p("MC_ACRO_R_MAX") * d2r, p("MC_ACRO_P_MAX") * d2r,
-                         p("MC_ACRO_Y_MAX") * d2r)
+        self.acro_max = Vector3(p("MC_ACRO_R_MAX") * d2r, p("MC_ACRO_P_MAX") * d2r,
+                                p("MC_ACRO_Y_MAX") * d2r)
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -148,7 +147,7 @@ class McRateControlModule(WorkItemModule):
         if m is not None:
             armed = bool(m.armed)
             if armed != self.armed:
-                self._reset_integrals()
+                self.rate_control.reset_integral()
             self.armed = armed
         m = self.sub_land.update()
         if m is not None:
@@ -163,20 +162,46 @@ class McRateControlModule(WorkItemModule):
         if self.acro:
             ms = self.sub_manual.update()
             if ms is not None:
-                ar, ap, ay = self.acro_max
-                self.sr, self.sp, self.sy = ms.roll * ar, -ms.pitch * ap, ms.yaw * ay
+                self.rates_sp = Vector3(ms.roll, -ms.pitch, ms.yaw).emult(self.acro_max)
                 self.thrust = min(max(0.5 * (ms.throttle + 1.0), 0.0), 1.0)
         else:
             sp = self.sub_sp.update()
             if sp is not None:
-                self.sr, self.sp, self.sy = sp.roll, sp.pitch, sp.yaw
+                self.rates_sp = Vector3(sp.roll, sp.pitch, sp.yaw)
                 t = -sp.thrust_body[2]
                 self.thrust = 0.0 if t < 0.0 else (min(t, 1.0))
                 if sp.reset_integral:
-                    self._reset_integrals()
+                    self.rate_control.reset_integral()
 
-    def _reset_integrals(self) -> None:
-        self.ir = self.ip = self.iy = 0.0
+    def _rate_derivative(self, rate: Vector3, dt: float) -> Vector3:
+        """The D term's input: the measured rate's derivative through MC_DTERM_CUTOFF."""
+        fc = self.dcut_hz
+        a = 1.0 if fc <= 0.0 else dt / (dt + 1.0 / (6.283185307179586 * fc))
+        d = self.rate_deriv
+        d = d + ((rate - self.rate_prev) * (1.0 / dt) - d) * a
+        self.rate_deriv = d
+        self.rate_prev = rate
+        return d
+
+    def _predict_saturation(self, u: Vector3, thr: float) -> None:
+        """Tell the library which torque directions the quad-X mixer cannot give now.
+
+        With x = S*(pitch - roll) and y = S*(pitch + roll) the motors are thr -x +yaw,
+        thr +x +yaw, thr +y -yaw, thr -y -yaw: roll and pitch saturate when a motor leaves
+        [0, 1] without yaw, yaw also when it does with yaw. An axis is saturated in the
+        direction of its command (more of the same cannot be had)."""
+        x = _S * (u.y - u.x)
+        y = _S * (u.y + u.x)
+        ax = x if x > 0.0 else -x
+        ay = y if y > 0.0 else -y
+        rp = max(ay, ax)
+        sat_rp = thr - rp < 0.0 or thr + rp > 1.0
+        ayaw = u.z if u.z > 0.0 else -u.z
+        sat_y = sat_rp or thr - rp - ayaw < 0.0 or thr + rp + ayaw > 1.0
+        self.saturated = sat_y
+        self.rate_control.set_saturation_status(
+            (sat_rp and u.x > 0.0, sat_rp and u.y > 0.0, sat_y and u.z > 0.0),
+            (sat_rp and u.x < 0.0, sat_rp and u.y < 0.0, sat_y and u.z < 0.0))
 
     def run(self) -> None:
         g = self.sub_gyro.update()
@@ -184,68 +209,31 @@ class McRateControlModule(WorkItemModule):
             return
         self._update_slow_inputs()
         wr, wp, wy = g.xyz
+        rate = Vector3(wr, wp, wy)
         t = g.timestamp_sample
         dt = (t - self.last_sample_us) * 1e-6
         self.last_sample_us = t
         if dt <= 0.0002 or dt > 0.02:   # first sample or a gap: no derivative this time
             dt = 0.001
-            self.lr, self.lp, self.ly = wr, wp, wy
-        # D-term: filtered derivative of the measured rate
-        fc = self.dcut_hz
-        a = 1.0 if fc <= 0.0 else dt / (dt + 1.0 / (6.283185307179586 * fc))
-        inv = 1.0 / dt
-        self.dr += a * ((wr - self.lr) * inv - self.dr)
-        self.dp += a * ((wp - self.lp) * inv - self.dp)
-        self.dy += a * ((wy - self.ly) * inv - self.dy)
-        self.lr, self.lp, self.ly = wr, wp, wy
-
-        er = self.sr - wr
-        ep = self.sp - wp
-        ey = self.sy - wy
-        ur = self.kpr * er + self.ir - self.kdr * self.dr + self.ffr * self.sr
-        up = self.kpp * ep + self.ip - self.kdp * self.dp + self.ffp * self.sp
-        uy = self.kpy * ey + self.iy - self.kdy * self.dy + self.ffy * self.sy
-        ur = -1.0 if ur < -1.0 else (min(ur, 1.0))
-        up = -1.0 if up < -1.0 else (min(up, 1.0))
-        uy = -1.0 if uy < -1.0 else (min(uy, 1.0))
+            self.rate_prev = rate
+        accel = self._rate_derivative(rate, dt)
+        rc = self.rate_control
+        u = rc.torque(rate, self.rates_sp, accel).constrain(-1.0, 1.0)
         thr = self.thrust
-
         if self.armed and not self.landed:
-            # Predict the quad-X mixer: with x = S*(pitch - roll) and y = S*(pitch + roll) the
-            # motors are thr -x +yaw, thr +x +yaw, thr +y -yaw, thr -y -yaw.
-            x = _S * (up - ur)
-            y = _S * (up + ur)
-            ax = x if x > 0.0 else -x
-            ay = y if y > 0.0 else -y
-            rp = max(ay, ax)
-            sat_rp = thr - rp < 0.0 or thr + rp > 1.0
-            sat_y = sat_rp or thr - rp - (uy if uy > 0.0 else -uy) < 0.0 \
-                or thr + rp + (uy if uy > 0.0 else -uy) > 1.0
-            self.saturated = sat_y
-            # Integrate unless saturated in the direction of the integration.
-            v = self.ir + self.kip_r * er * dt
-            if not (sat_rp and er * ur > 0.0):
-                lim = self.limr
-                self.ir = -lim if v < -lim else (min(v, lim))
-            v = self.ip + self.kip_p * ep * dt
-            if not (sat_rp and ep * up > 0.0):
-                lim = self.limp
-                self.ip = -lim if v < -lim else (min(v, lim))
-            v = self.iy + self.kip_y * ey * dt
-            if not (sat_y and ey * uy > 0.0):
-                lim = self.limy
-                self.iy = -lim if v < -lim else (min(v, lim))
+            self._predict_saturation(u, thr)
+            rc.update_integral(dt)
         else:
-            self.ir = self.ip = self.iy = 0.0
+            rc.reset_integral()
 
         m = self.msg
         m.timestamp = self.platform.hrt.absolute_time()
         m.timestamp_sample = t
         c = m.control
         if self.armed:
-            c[0] = ur
-            c[1] = up
-            c[2] = uy
+            c[0] = u.x
+            c[1] = u.y
+            c[2] = u.z
             c[3] = thr
         else:
             c[0] = c[1] = c[2] = c[3] = 0.0
@@ -254,6 +242,7 @@ class McRateControlModule(WorkItemModule):
 
     def status_lines(self) -> list[str]:
         c = self.msg.control
+        i = self.rate_control.rate_int
         return [f"armed {self.armed} landed {self.landed} acro {self.acro}",
                 f"controls r {c[0]:+.3f} p {c[1]:+.3f} y {c[2]:+.3f} t {c[3]:.3f}",
-                f"integrators r {self.ir:+.4f} p {self.ip:+.4f} y {self.iy:+.4f}"]
+                f"integrators r {i.x:+.4f} p {i.y:+.4f} y {i.z:+.4f}"]
