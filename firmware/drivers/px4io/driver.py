@@ -218,8 +218,10 @@ class Px4ioDriver:
                 yield from self._check_orb()
             while self._pending:
                 what, op = self._pending.popleft()
+                self.link.last_error = ""
                 ok = yield from op()
-                if ok is False:
+                if ok is False and self.link.last_error:
+                    # a link failure the operation did not explain (it reports its own refusals)
                     self.m.warn(f"{what} failed: {self.link.last_error}")
 
     def _fail(self, reason: str) -> bool:
