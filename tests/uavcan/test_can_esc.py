@@ -42,8 +42,11 @@ def test_mixed_raw_commands_reach_the_esc_nodes_and_their_motor_outputs(tmp_path
     assert b.port_levels["can_esc1"] == _pulse(0)  # 0 stops the motor
     fly((0, 0, 0, 0.0), 100)
     assert [e.raw for e in escs] == [1884] * 4  # armed at zero thrust: UAVCAN_EC_MIN
+    rx0 = escs[0].commands_rx
     fly((0, 0, 0, 0.5), 100)
     assert [e.raw for e in escs] == [5038] * 4  # 1884 + 0.5 x (8191 - 1884)
+    # controls at 400 Hz, RawCommand at PX4's 200 Hz: 20 in 100 ms
+    assert 19 <= escs[0].commands_rx - rx0 <= 21
     assert [b.port_levels[f"can_esc{i}"] for i in range(1, 5)] == [_pulse(5038)] * 4
     st = b.ctl_topic("esc_status")  # what the ESCs report, as PX4's esc_status
     assert st["esc_count"] == 4 and st["esc_online_flags"] == st["esc_armed_flags"] == 0b1111

@@ -121,6 +121,8 @@ class UavcanModule(WorkItemModule):
         self._esc_msg: Any = None
         self._next_esc_status_us = 0
         self._esc_status_period_us = 0
+        self._cmd_interval_us = 0
+        self._last_cmd_us = -(1 << 62)
         if mode >= 3:  # ESCs on CAN: RawCommand from the FMU's own mixer (esc_output.py)
             from firmware.drivers.uavcan.esc_output import (COMMAND_INTERVAL_US,
                                                             ESC_STATUS_PERIOD_US, EscOutput)
@@ -134,6 +136,7 @@ class UavcanModule(WorkItemModule):
             self._esc_pub = self.advertise("esc_status")
             self._esc_msg = self.platform.orb.new("esc_status")
             self._esc_status_period_us = ESC_STATUS_PERIOD_US
+            self._cmd_interval_us = COMMAND_INTERVAL_US
         self._pub = self.advertise("can_interface_status")
         self._msg = self.platform.orb.new("can_interface_status")
         ctrl.on_receive(self._rx_isr)
@@ -204,9 +207,16 @@ class UavcanModule(WorkItemModule):
         a = self._armed_sub.update()
         if a is not None:
             self._armed = bool(a.armed) and not a.lockdown and not a.manual_lockdown
+        # at most every COMMAND_INTERVAL_US (PX4's 200 Hz), also when the item runs for other
+        # reasons (received frames, timers); the cadence kept as SubscriptionInterval keeps it
+        iv = self._cmd_interval_us
+        if now - self._last_cmd_us < iv:
+            return  # the update stays unread for the next turn
         c = self._controls_sub.update()
         if c is None:
             return
+        nxt = self._last_cmd_us + iv
+        self._last_cmd_us = nxt if now - iv < nxt <= now else now
         esc = self.stack.esc
         raw = esc.command(c.control, self._armed)
         if raw and self.stack.send_esc_command(raw, now):
