@@ -31,10 +31,11 @@ ACCEPTED, DENIED, UNSUPPORTED = 0, 2, 3
 class CalibrationRunner(WorkItem):
     """Steps the running routine until it ends."""
 
-    cpu_cost_ns = 20_000
-
     def __init__(self, platform: Any) -> None:
         super().__init__(platform, "calibration", "wq:lp_default")
+        # on the instance: compiled WorkItem code would not see a class attribute of this
+        # ordinary subclass (tests/hil/test_native_attributes.py)
+        self.cpu_cost_ns = 20_000
         self.routine: Routine | None = None
         self.results: list[tuple[str, int]] = []
 
