@@ -53,14 +53,15 @@ class SpiTarget:
     """Base class for an SPI device model.
 
     Subclasses override the hooks; the bus calls the public methods. Attributes a subclass
-    may set as class attributes:
+    sets on the instance, after ``super().__init__()`` (a class attribute of an ordinary
+    subclass is not seen by this class when it is compiled: tests/hil/test_native_attributes.py):
 
     * ``max_clock_hz``: fastest SCK the device accepts (None: no limit). Faster transfers get
       :meth:`_clock_too_fast`'s answer instead of :meth:`_exchange`'s.
 
     State kept here is readable by tests and status commands: ``selected``, ``mode``,
     ``clock_hz`` (of the current/last selection), ``too_fast_count`` (selections refused for
-    speed). The defaults are class attributes, so a subclass that forgets
+    speed). The defaults are declared in the class body, so a subclass that forgets
     ``super().__init__()`` still works.
     """
 
