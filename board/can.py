@@ -49,7 +49,7 @@ from typing import Any
 
 import can
 
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
+from board.kernel import PRIO_HW, PRIO_ISR, Event, Kernel, call_in_isr
 
 __all__ = [
     "ERROR_FRAME_BITS",
@@ -195,7 +195,7 @@ class CanBus:
         self.controllers: list[CanController] = []
         self._idle_ns = 0
         self._busy = False
-        self._arb_event: list | None = None
+        self._arb_event: Event | None = None
         self._inject = 0
         self._short = False
         self._ber = 0.0
@@ -252,7 +252,7 @@ class CanBus:
 
     def _request_arbitration(self, t_ns: int | None = None) -> None:
         ev = self._arb_event
-        if self._busy or (ev is not None and ev[3] is not None):
+        if self._busy or Kernel.pending(ev):
             return
         if t_ns is None:
             t_ns = self.kernel.context_ns
@@ -384,7 +384,7 @@ class CanController:
         self._rx_handler: RxHandler | None = None
         self._tx_handler: TxHandler | None = None
         self._bus_off = False
-        self._recovery_event: list | None = None
+        self._recovery_event: Event | None = None
         self._earliest_tx_ns = 0
         #: Transmit and receive error counters (ISO 11898-1 fault confinement).
         self.tec = 0

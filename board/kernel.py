@@ -10,6 +10,12 @@ Nothing here reads the wall clock, sleeps or starts threads.
 
 Heap entries are plain lists ``[t_ns, priority, seq, fn, args]`` because lists compare in C, which
 keeps the hot loop fast; a cancelled entry has ``fn`` set to ``None`` and is skipped when popped.
+The entry is also the handle a scheduling call returns (:data:`Event`), but it is the kernel's:
+only this module writes it or the heap. Callers cancel with :meth:`Kernel.cancel` and ask
+:meth:`Kernel.pending`, :meth:`Kernel.due_ns` and :meth:`Kernel.event_args`; every push goes
+through :meth:`Kernel.post` or the checked ``call_*``. (A handle object with a ``cancel()``
+method would cost one more allocation per event on the platform's hottest path;
+:class:`Periodic` is such an object, made once per timer.)
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ from mypy_extensions import mypyc_attr
 
 __all__ = [
     "call_in_isr",
+    "Event",
     "Kernel",
     "KernelError",
     "Periodic",
@@ -48,6 +55,11 @@ PRIO_THREAD: Final = 100
 
 _heappush: Final = heapq.heappush
 _heappop: Final = heapq.heappop
+
+#: A scheduled call, as :meth:`Kernel.post`, :meth:`Kernel.call_at` and
+#: :meth:`Kernel.call_later` return it: opaque outside this module (pass it to
+#: :meth:`Kernel.cancel`, :meth:`Kernel.pending`, :meth:`Kernel.due_ns`).
+Event = list
 
 
 @mypyc_attr(native_class=False)
@@ -105,7 +117,7 @@ class Periodic:
 
     def cancel(self) -> None:
         self.active = False
-        self._entry[3] = None
+        self._entry[3] = None  # this module's own entry
 
     @property
     def name(self) -> str:
@@ -139,7 +151,7 @@ class Kernel:
 
     # -- scheduling ---------------------------------------------------------------------------
 
-    def post(self, t_ns: int, priority: int, fn: Callable[..., Any], args: tuple) -> list:
+    def post(self, t_ns: int, priority: int, fn: Callable[..., Any], args: tuple) -> Event:
         """``call_at`` without argument checks, for the platform's hot paths (t_ns >= now)."""
         self._seq = seq = self._seq + 1
         entry = [t_ns, priority, seq, fn, args]
@@ -147,7 +159,7 @@ class Kernel:
         return entry
 
     def call_at(self, t_ns: int, fn: Callable[..., Any], *args: Any,
-                priority: int = PRIO_DEFAULT) -> list:
+                priority: int = PRIO_DEFAULT) -> Event:
         """Run ``fn(*args)`` at virtual time ``t_ns``; returns a handle for :meth:`cancel`."""
         if t_ns < self.now_ns:
             raise ValueError(
@@ -161,7 +173,7 @@ class Kernel:
         return entry
 
     def call_later(self, delay_ns: int, fn: Callable[..., Any], *args: Any,
-                   priority: int = PRIO_DEFAULT) -> list:
+                   priority: int = PRIO_DEFAULT) -> Event:
         """Run ``fn(*args)`` ``delay_ns`` after now; returns a handle for :meth:`cancel`."""
         if delay_ns < 0:
             raise ValueError(
@@ -188,8 +200,10 @@ class Kernel:
         return Periodic(self, period_ns, fn, args, priority, first_ns)
 
     @staticmethod
-    def cancel(handle: list | Periodic | None) -> None:
-        """Cancel a pending call; cancelling twice, or after it ran, is harmless."""
+    def cancel(handle: Event | Periodic | None) -> None:
+        """Cancel a pending call; cancelling twice, after it ran, or ``None`` is harmless.
+
+        The entry stays in the heap, dead, until it comes up (cheaper than removing it)."""
         if handle is None:
             return
         if isinstance(handle, Periodic):
@@ -198,9 +212,23 @@ class Kernel:
             handle[3] = None
 
     @staticmethod
-    def pending(handle: list | None) -> bool:
-        """True if ``handle`` (from call_at/call_later) has not run and was not cancelled."""
+    def pending(handle: Event | None) -> bool:
+        """True if ``handle`` (from post/call_at/call_later) has not run and was not
+        cancelled. An entry is marked dead only by :meth:`cancel`; one that ran is popped, so
+        its owner drops the handle in the callback (the devices and timers here do)."""
         return handle is not None and handle[3] is not None
+
+    @staticmethod
+    def due_ns(handle: Event) -> int:
+        """The virtual time ``handle`` is (or was) due at."""
+        t: int = handle[0]
+        return t
+
+    @staticmethod
+    def event_args(handle: Event) -> tuple:
+        """The arguments ``handle``'s callback gets (a cancelled entry keeps them)."""
+        args: tuple = handle[4]
+        return args
 
     # -- running ------------------------------------------------------------------------------
 

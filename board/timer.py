@@ -35,7 +35,7 @@ from collections.abc import Callable
 from typing import Final
 
 from board.gpio import Pin
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
+from board.kernel import PRIO_HW, PRIO_ISR, Event, Kernel, call_in_isr
 
 __all__ = ["REGISTERS", "PwmListener", "Timer", "TimerChannel", "TimerIrqHandler"]
 
@@ -209,7 +209,7 @@ class Timer:
         self._uev_base = self._uif_mark = 0  # UEVs before the anchor; at the last UIF clear
         self._uif_flag = self._irq_pending = self._ev_uev = False
         self._pend_t: int | None = None  # time of the UEV that will load pending preloads
-        self._event: list | None = None
+        self._event: Event | None = None
         self._ev_cc: list[int] = []
         self._irq: TimerIrqHandler | None = None
         self._waves = [self._wave(ch.n) for ch in self._ch]

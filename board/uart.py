@@ -23,7 +23,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any, Final
 
-from board.kernel import PRIO_ISR, Kernel, call_in_isr
+from board.kernel import PRIO_ISR, Event, Kernel, call_in_isr
 from board.uart_line import (
     BREAK,
     FE,
@@ -96,17 +96,17 @@ class Uart:
         self._tx_idle_ns = 0
         self._tx_bursts: deque[tuple[int, int, int, int, int]] = deque()  # t0, K, baud, n, end
         self._tc_handler: TimeHandler | None = None
-        self._tc_event: list | None = None
+        self._tc_event: Event | None = None
         self.tx_bytes = 0
         self.breaks_sent = 0
         # receiver
         self._buf = bytearray()
         self._pending: deque[list] = deque()
         self._decoder = LineDecoder()
-        self._decode_event: list | None = None
+        self._decode_event: Event | None = None
         self._rx_handler: RxHandler | None = None
         self._idle_handler: TimeHandler | None = None
-        self._idle_event: list | None = None
+        self._idle_event: Event | None = None
         self._last_rx_ns = 0
         self._idle_armed = False
         self._flags = 0
@@ -269,8 +269,8 @@ class Uart:
         """
         now = self.kernel.now_ns
         ev = self._idle_event
-        if ev is not None and ev[3] is not None and t_start_ns < ev[0]:
-            ev[3] = None  # the line is busy again before IDLE would have been detected
+        if ev is not None and Kernel.pending(ev) and t_start_ns < Kernel.due_ns(ev):
+            Kernel.cancel(ev)  # the line is busy again before IDLE would have been detected
             self._idle_event = None
         rx = self._config
         if isinstance(data, LineBreak):

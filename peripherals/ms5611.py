@@ -27,7 +27,7 @@ from typing import Final
 
 import numpy as np
 
-from board.kernel import NS_PER_MS, PRIO_HW, Kernel
+from board.kernel import NS_PER_MS, PRIO_HW, Event, Kernel
 from board.spi import SpiTarget
 from peripherals.errors import ScalarErrorModel
 from peripherals.faults import FaultState
@@ -192,7 +192,7 @@ class Ms5611(SpiTarget):
         self.corrupted_conversions = 0
         self.early_reads = 0
         self._reset_until_ns = -1
-        self._conv_entry: list | None = None
+        self._conv_entry: Event | None = None
         self.powered = True
         self._conv_end_ns = -1
         self._conv_kind = 0       # 1 = D1, 2 = D2
@@ -215,7 +215,7 @@ class Ms5611(SpiTarget):
 
     @property
     def converting(self) -> bool:
-        return self._conv_entry is not None and self._conv_entry[3] is not None
+        return Kernel.pending(self._conv_entry)
 
     def set_power(self, on: bool) -> None:
         """The supply rail: off, conversions stop and MISO floats high; on is a power-on reset

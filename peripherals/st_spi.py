@@ -40,7 +40,7 @@ from typing import Final
 import numpy as np
 
 from board.gpio import Pin
-from board.kernel import PRIO_HW, Kernel
+from board.kernel import PRIO_HW, Event, Kernel
 from board.spi import SpiTarget
 from firmware.lib.rotation import board_to_sensor
 from peripherals.faults import FaultState
@@ -338,10 +338,10 @@ class StSpiTarget(SpiTarget):
         self._addr = 0
         #: Time of the access being served (hooks use it to restart sample grids).
         self._t = 0
-        self._pin_event: list | None = None
+        self._pin_event: Event | None = None
         #: While :meth:`_on_pin_event` drives the pins: the EXTI calls it makes at its end.
         self._hw_edges: list | None = None
-        self._boot_event: list | None = None
+        self._boot_event: Event | None = None
         self._warned: set[str] = set()
         self.regs: RegisterFile
         #: Output blocks a burst read serves in one call: address -> (first address of the
@@ -463,9 +463,9 @@ class StSpiTarget(SpiTarget):
         """Keep exactly one pending pin event, at ``t_ns`` (None: none needed)."""
         ev = self._pin_event
         if ev is not None:
-            if t_ns == ev[0] and ev[3] is not None:
+            if t_ns == Kernel.due_ns(ev) and Kernel.pending(ev):
                 return
-            ev[3] = None
+            Kernel.cancel(ev)
             self._pin_event = None
         if t_ns is not None:
             self._pin_event = self.kernel.call_at(t_ns, self._on_pin_event, priority=PRIO_HW)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from board.kernel import NS_PER_US, PRIO_ISR, Kernel
+from board.kernel import NS_PER_US, PRIO_ISR, Event, Kernel
 
 __all__ = ["Hrt", "HrtCall"]
 
@@ -28,7 +28,7 @@ class HrtCall:
         self.deadline_us = deadline_us
         self.period_us = period_us
         self.fired = False
-        self._entry: list | None = None
+        self._entry: Event | None = None
 
     def _arm(self) -> None:
         k = self.hrt.kernel
@@ -69,12 +69,11 @@ class HrtCall:
         k = self.hrt.kernel
         deadline = (k.now_ns + k.busy_ns) // NS_PER_US + delay_us
         e = self._entry
-        if e is not None and e[3] is not None and not self.period_us \
-                and e[0] <= deadline * NS_PER_US:
+        if e is not None and Kernel.pending(e) and not self.period_us \
+                and Kernel.due_ns(e) <= deadline * NS_PER_US:
             self.deadline_us = deadline
             return
-        if e is not None:
-            e[3] = None
+        Kernel.cancel(e)
         self.deadline_us = deadline
         self.period_us = 0
         self.fired = False
@@ -82,12 +81,12 @@ class HrtCall:
 
     def cancel(self) -> None:
         if self._entry is not None:
-            self._entry[3] = None
+            Kernel.cancel(self._entry)
             self._entry = None
 
     @property
     def pending(self) -> bool:
-        return self._entry is not None and self._entry[3] is not None
+        return Kernel.pending(self._entry)
 
 
 class Hrt:

@@ -13,7 +13,6 @@ Items schedule themselves PX4-style: ``schedule_now()``, ``schedule_delayed(us)`
 
 from __future__ import annotations
 
-import heapq
 from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Final
@@ -25,8 +24,6 @@ from board.kernel import PRIO_THREAD, Kernel, KernelError
 if TYPE_CHECKING:
     from firmware.platform import Platform
     from firmware.platform.hrt import HrtCall
-
-_heappush: Final = heapq.heappush
 
 __all__ = ["WqConfig", "WQ_CONFIGS", "WorkQueue", "WorkQueueManager", "WorkItem"]
 
@@ -58,7 +55,7 @@ class WorkQueue:
     """One work queue: a FIFO of items run to completion at this queue's thread priority."""
 
     __slots__ = ("kernel", "config", "name", "_q", "_armed", "busy_until_ns", "_kprio",
-                 "items", "run_count", "busy_ns_total", "_heap", "_disp")
+                 "items", "run_count", "busy_ns_total", "_disp")
 
     def __init__(self, kernel: Kernel, config: WqConfig) -> None:
         self.kernel = kernel
@@ -72,9 +69,9 @@ class WorkQueue:
         self.items: list[WorkItem] = []
         self.run_count = 0
         self.busy_ns_total = 0
-        # Dispatch events go straight onto the kernel's heap (what Kernel.post does, without
-        # the call): one per work item run, the platform's most frequent event.
-        self._heap = kernel._queue
+        # The bound dispatcher, made once: one dispatch event per work item run, the
+        # platform's most frequent event, posted through Kernel.post (the kernel is the only
+        # writer of its heap).
         self._disp = self._dispatch
 
     def add(self, item: WorkItem) -> None:
@@ -88,8 +85,7 @@ class WorkQueue:
             t = k.now_ns + k.busy_ns
             if self.busy_until_ns > t:
                 t = self.busy_until_ns
-            k._seq = seq = k._seq + 1
-            _heappush(self._heap, [t, self._kprio, seq, self._disp, ()])
+            k.post(t, self._kprio, self._disp, ())
 
     def remove(self, item: WorkItem) -> None:
         if item._queued:
@@ -116,8 +112,7 @@ class WorkQueue:
         self.busy_ns_total += cost
         self.busy_until_ns = t = k.now_ns + cost
         if q:
-            k._seq = seq = k._seq + 1
-            _heappush(self._heap, [t, self._kprio, seq, self._disp, ()])
+            k.post(t, self._kprio, self._disp, ())
         else:
             self._armed = False
 

@@ -114,7 +114,7 @@ class IoThread:
             self._poller.cancel()
             self._poller = None
         if self._event is not None:
-            self._event[3] = None
+            self.platform.kernel.cancel(self._event)
             self._event = None
 
     # -- wake-ups ---------------------------------------------------------------------------
