@@ -177,7 +177,11 @@ class FmuV2Board(Board):
             for idev in ibus.devices:
                 if idev.name in self._excluded:
                     continue
-                model = model_class(idev.model)(k, env, self._rng(idev.name), name=idev.name)
+                drdy: dict[str, Any] = {}
+                if idev.drdy:
+                    drdy["drdy_pin"] = self.gpio.pin(idev.drdy[0])
+                model = model_class(idev.model)(k, env, self._rng(idev.name), name=idev.name,
+                                                **drdy)
                 self.i2c[ibus.name].attach(idev.address, model)
                 self.devices[idev.name] = model
         for u in self.spec.uarts:
@@ -313,13 +317,13 @@ class FmuV2Board(Board):
         """Start the firmware as the real board does: FRAM, parameters, shell, rcS."""
         from firmware import romfs
         from firmware.modules import system_params
-        from firmware.platform.module import ModuleRegistry
+        from firmware.platform.module import ModuleRegistry, board_modules
         from firmware.platform.params import Params, ParamStorage
         from firmware.shell import Shell
         from firmware.system import System
 
         p = self.platform
-        registry = ModuleRegistry(None)
+        registry = ModuleRegistry(None, board_modules(self.spec))
         console = self.uarts["UART7"]
         self.system = system = System(p, None, modules=registry, board=self.spec,
                                       sd_root=self.sd_root, reboot=self._reboot_request,
@@ -329,10 +333,11 @@ class FmuV2Board(Board):
         system.adc = self.adc
         defs = list(system_params.PARAMS) + registry.param_defs()
         storage = None
-        if registry.start("mtd") == 0:
-            mtd = registry.get("mtd")
-            storage = ParamStorage(mtd.partition("params"))
-            system.waypoints_partition = mtd.partition("waypoints")
+        for d in self.spec.drivers("storage"):  # the FRAM's MTD, before the parameters load
+            if registry.start(d.command, d.args) == 0 and storage is None:
+                mtd: Any = registry.get(d.command)
+                storage = ParamStorage(mtd.partition("params"))
+                system.waypoints_partition = mtd.partition("waypoints")
         params = Params(p, defs, storage)
         system.params = params
         if self._param_overrides and storage is not None:
@@ -397,33 +402,22 @@ class FmuV2Board(Board):
         raise KeyError(device)
 
     def start_sensors(self) -> dict[str, bool]:
-        """Create and start every sensor driver of this board (PX4's rc.board_sensors)."""
-        from firmware.drivers.barometer.ms5611 import Ms5611Driver
-        from firmware.drivers.gps.gps import GpsDriver
-        from firmware.drivers.imu.l3gd20 import L3gd20Driver
-        from firmware.drivers.imu.lsm303d import Lsm303dDriver
-        from firmware.drivers.imu.mpu6000 import Mpu6000Driver, gyro_rate_limit
-        from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
+        """Create and start the sensor drivers of this board's spec (PX4's rc.board_sensors),
+        in the spec's order, without a shell: each driver's shell module builds it from where
+        the spec puts its device (:meth:`DriverModule.build`)."""
+        import importlib
 
-        p = self.platform
-        pin = self.gpio.pin
-        rate_max = gyro_rate_limit(self.system.params if self.system is not None else None)
-        makers = {
-            "mpu6000": lambda: Mpu6000Driver(p, self.spi_handle("mpu6000"), drdy_pin=pin("PD15"),
-                                             max_rate_hz=rate_max),
-            "l3gd20": lambda: L3gd20Driver(p, self.spi_handle("l3gd20"), drdy_pin=pin("PB0")),
-            "lsm303d": lambda: Lsm303dDriver(p, self.spi_handle("lsm303d")),
-            "ms5611": lambda: Ms5611Driver(p, self.spi_handle("ms5611")),
-            "hmc5883": lambda: Hmc5883Driver(p, self.i2c["I2C1"].device(0x1E), bus=1),
-            "gps": lambda: GpsDriver(p, self.uarts["UART4"]),
-        }
+        params = self.system.params if self.system is not None else None
         started = {}
-        for name, make in makers.items():
-            if name in self._excluded:
+        for d in self.spec.drivers("sensors"):
+            if d.command in self._excluded or d.device in self._excluded:
                 continue
-            driver = make()
-            self.drivers[name] = driver
-            started[name] = driver.start()
+            mod_name, _, cls_name = d.target.partition(":")
+            cls = getattr(importlib.import_module(mod_name), cls_name)
+            driver = cls.build(self.platform, self, self.spec.place(d.device),
+                               cls.parse_options(d.args), params)
+            self.drivers[d.command] = driver
+            started[d.command] = driver.start()
         return started
 
     # -- control calls (tests, shell, fault injection) ---------------------------------------

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import importlib
 import re
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import Any, Union
 
 __all__ = ["SpecError", "SpiDevice", "SpiBusSpec", "I2cDevice", "I2cBusSpec", "UartSpec",
-           "AdcChannel", "PwmOutput", "CanSpec", "BoardSpecData", "FMU_V2", "IO_V2", "MODELS",
-           "model_class"]
+           "AdcChannel", "PwmOutput", "CanSpec", "BoardSpecData", "DevicePlace", "DriverStart",
+           "FMU_V2", "IO_V2", "MODELS", "DRIVERS", "STAGES", "model_class"]
 
 _PIN = re.compile(r"^P[A-K]\d{1,2}$")
 
@@ -39,12 +39,39 @@ MODELS: dict[str, str] = {
 }
 
 
+#: Driver shell name -> its shell module, "package.module:Class" (firmware/drivers/modules.py),
+#: imported only when started. A device entry names its driver here, or gives ``driver_class``.
+DRIVERS: dict[str, str] = {
+    "mpu6000": "firmware.drivers.modules:Mpu6000Module",
+    "l3gd20": "firmware.drivers.modules:L3gd20Module",
+    "lsm303d": "firmware.drivers.modules:Lsm303dModule",
+    "ms5611": "firmware.drivers.modules:Ms5611Module",
+    "hmc5883": "firmware.drivers.modules:Hmc5883Module",
+    "gps": "firmware.drivers.modules:GpsModule",
+    "mtd": "firmware.drivers.modules:MtdModule",
+}
+
+#: When a board starts a device's driver: ``"sensors"`` with the sensor drivers (rc.sensors, or
+#: ``firmware="sensors"``), ``"storage"`` first at boot, before the parameters load from it.
+STAGES = ("sensors", "storage")
+
+
+def _is_target(name: str) -> bool:
+    """A ``"package.module:Class"`` string (a model or driver not in the tables)."""
+    module, sep, cls = name.partition(":")
+    return bool(sep and module and cls.isidentifier())
+
+
 def model_class(name: str) -> Any:
-    try:
-        target = MODELS[name]
-    except KeyError:
-        raise SpecError(f"unknown device model {name!r}; known: {', '.join(sorted(MODELS))}"
-                        ) from None
+    """The model class of a spec's ``model``: a key of :data:`MODELS` or ``"pkg.mod:Class"``."""
+    if _is_target(name):
+        target = name
+    else:
+        try:
+            target = MODELS[name]
+        except KeyError:
+            raise SpecError(f"unknown device model {name!r}; known: {', '.join(sorted(MODELS))}"
+                            ) from None
     module, _, cls = target.partition(":")
     return getattr(importlib.import_module(module), cls)
 
@@ -57,11 +84,16 @@ def _pin(p: str | None, what: str) -> None:
 @dataclass(frozen=True)
 class SpiDevice:
     name: str           # instance name (also the driver's name)
-    model: str          # key of MODELS
+    model: str          # key of MODELS, or "package.module:Class"
     cs: str             # chip-select pin (active low)
     drdy: tuple[str, ...] = ()  # data-ready / interrupt pins, in the model's order
     max_clock_hz: int | None = None
     about: str = ""
+    driver: str = ""    # shell name of its driver ("" : none started from the spec)
+    driver_class: str = ""  # "package.module:Class" of that shell module (default DRIVERS)
+    driver_args: tuple[str, ...] = ()  # start options, as in ``hmc5883 -X start``
+    rotation: int | None = None  # PX4 mounting rotation handed to the driver (None: its own)
+    stage: str = "sensors"  # see STAGES
 
 
 @dataclass(frozen=True)
@@ -75,10 +107,16 @@ class SpiBusSpec:
 @dataclass(frozen=True)
 class I2cDevice:
     name: str
-    model: str
+    model: str          # key of MODELS, or "package.module:Class"
     address: int
     external: bool = False
     about: str = ""
+    driver: str = ""
+    driver_class: str = ""
+    driver_args: tuple[str, ...] = ()
+    rotation: int | None = None
+    stage: str = "sensors"
+    drdy: tuple[str, ...] = ()  # data-ready / interrupt pins, in the model's order
 
 
 @dataclass(frozen=True)
@@ -99,6 +137,10 @@ class UartSpec:
     port: str | None = None   # lockstep port name when the UART leaves the board
     external_model: str | None = None  # a device plugged into the connector (the GPS)
     about: str = ""
+    driver: str = ""    # the connector device's driver, as for SpiDevice
+    driver_class: str = ""
+    driver_args: tuple[str, ...] = ()
+    stage: str = "sensors"
 
 
 @dataclass(frozen=True)
@@ -125,6 +167,64 @@ class CanSpec:
     name: str
     rx: str
     tx: str
+
+
+Device = Union[SpiDevice, I2cDevice]
+
+
+@dataclass(frozen=True)
+class DevicePlace:
+    """Where one device sits, as its driver needs it: the bus (``"SPI1"``, ``"I2C1"`` or a UART
+    name), PX4's bus number, the I2C address (0 on SPI and UART), the chip-select pin (SPI),
+    the data-ready pins and the mounting rotation. The driver takes these from here, not from
+    constants of its own, so the board's spec is the one place they are written."""
+
+    name: str
+    kind: str           # "spi", "i2c" or "uart"
+    bus: str
+    bus_number: int
+    address: int = 0
+    cs: str = ""
+    external: bool = False
+    drdy: tuple[str, ...] = ()
+    rotation: int | None = None
+    device: str = ""    # the NuttX device of a UART ("/dev/ttyS3")
+
+
+@dataclass(frozen=True)
+class DriverStart:
+    """One driver a board starts, derived from its spec: ``command start args`` in the shell."""
+
+    device: str         # the device's name in the spec
+    command: str        # shell name
+    target: str         # "package.module:Class" of the shell module
+    args: tuple[str, ...]
+    stage: str
+
+    @property
+    def line(self) -> str:
+        """The nsh line that starts it (rc.sensors is made of these)."""
+        return " ".join((self.command, "start") + self.args)
+
+
+def _driver_target(where: str, name: str, driver: str, driver_class: str, stage: str) -> str:
+    if stage not in STAGES:
+        raise SpecError(f"{where}: {name} stage {stage!r} is not one of {', '.join(STAGES)}")
+    if not driver:
+        if driver_class:
+            raise SpecError(f"{where}: {name} has a driver_class but no driver (shell name)")
+        return ""
+    if not re.match(r"^[a-z][a-z0-9_]*$", driver):
+        raise SpecError(f"{where}: {name} driver {driver!r} is not a shell command name")
+    if driver_class:
+        if not _is_target(driver_class):
+            raise SpecError(f"{where}: {name} driver_class {driver_class!r} is not "
+                            f"'package.module:Class'")
+        return driver_class
+    if driver not in DRIVERS:
+        raise SpecError(f"{where}: {name} driver {driver!r} unknown (known: "
+                        f"{', '.join(sorted(DRIVERS))}); give its driver_class")
+    return DRIVERS[driver]
 
 
 @dataclass(frozen=True)
@@ -155,9 +255,18 @@ class BoardSpecData:
             claimed[pin] = who
 
         names: set[str] = set()
+        commands: dict[str, str] = {}
+
+        def driver(name: str, drv: str, cls: str, stage: str) -> None:
+            _driver_target(where, name, drv, cls, stage)
+            if drv and drv in commands:
+                raise SpecError(f"{where}: driver {drv} named by both {commands[drv]} and {name}")
+            commands[drv] = name
+
         for bus in self.spi:
             for dev in bus.devices:
-                if dev.model not in MODELS:
+                driver(dev.name, dev.driver, dev.driver_class, dev.stage)
+                if dev.model not in MODELS and not _is_target(dev.model):
                     raise SpecError(f"{where}: {bus.name} device {dev.name} has unknown model "
                                     f"{dev.model!r}")
                 if dev.name in names:
@@ -166,28 +275,33 @@ class BoardSpecData:
                 claim(dev.cs, f"{dev.name} chip select")
                 for p in dev.drdy:
                     claim(p, f"{dev.name} data-ready")
-        for bus in self.i2c:
+        for ibus in self.i2c:
             addrs: set[int] = set()
-            for dev in bus.devices:
-                if dev.model not in MODELS:
-                    raise SpecError(f"{where}: {bus.name} device {dev.name} has unknown model "
-                                    f"{dev.model!r}")
-                if not 0x08 <= dev.address <= 0x77:
-                    raise SpecError(f"{where}: {dev.name} address 0x{dev.address:02X} is "
+            for idev in ibus.devices:
+                driver(idev.name, idev.driver, idev.driver_class, idev.stage)
+                if idev.model not in MODELS and not _is_target(idev.model):
+                    raise SpecError(f"{where}: {ibus.name} device {idev.name} has unknown model "
+                                    f"{idev.model!r}")
+                for p in idev.drdy:
+                    claim(p, f"{idev.name} data-ready")
+                if not 0x08 <= idev.address <= 0x77:
+                    raise SpecError(f"{where}: {idev.name} address 0x{idev.address:02X} is "
                                     f"reserved or not 7-bit")
-                if dev.address in addrs:
-                    raise SpecError(f"{where}: {bus.name} address 0x{dev.address:02X} used twice")
-                addrs.add(dev.address)
-                if dev.name in names:
-                    raise SpecError(f"{where}: device name {dev.name} used twice")
-                names.add(dev.name)
+                if idev.address in addrs:
+                    raise SpecError(f"{where}: {ibus.name} address 0x{idev.address:02X} used twice")
+                addrs.add(idev.address)
+                if idev.name in names:
+                    raise SpecError(f"{where}: device name {idev.name} used twice")
+                names.add(idev.name)
         seen_uarts: set[str] = set()
         for u in self.uarts:
             if u.name in seen_uarts:
                 raise SpecError(f"{where}: UART {u.name} listed twice")
             seen_uarts.add(u.name)
-            if u.external_model is not None and u.external_model not in MODELS:
+            if u.external_model is not None and u.external_model not in MODELS \
+                    and not _is_target(u.external_model):
                 raise SpecError(f"{where}: {u.name} external model {u.external_model!r} unknown")
+            driver(u.role, u.driver, u.driver_class, u.stage)
         for out in self.pwm:
             claim(out.pin, f"PWM {out.name}")
             if out.timer not in self.timers_hz:
@@ -199,6 +313,81 @@ class BoardSpecData:
                 # A few pins legitimately double (the FMUv2 PB4 strap is the LSM303D INT1).
                 continue
             _pin(p, f"{where}: {role}")
+
+    # -- devices and their drivers ---------------------------------------------------------
+
+    def drivers(self, stage: str | None = None) -> list[DriverStart]:
+        """The drivers this board starts, in start order (SPI buses, I2C buses, then the
+        UARTs' connector devices, each in spec order), optionally of one stage only."""
+        where = f"board {self.name}"
+        out: list[DriverStart] = []
+        entries: list[tuple[str, str, str, tuple[str, ...], str]] = []
+        for bus in self.spi:
+            entries += [(d.name, d.driver, d.driver_class, d.driver_args, d.stage)
+                        for d in bus.devices]
+        for ibus in self.i2c:
+            entries += [(d.name, d.driver, d.driver_class, d.driver_args, d.stage)
+                        for d in ibus.devices]
+        entries += [(u.role, u.driver, u.driver_class, u.driver_args, u.stage)
+                    for u in self.uarts if u.external_model is not None]
+        for name, drv, cls, args, st in entries:
+            if drv and (stage is None or st == stage):
+                out.append(DriverStart(name, drv, _driver_target(where, name, drv, cls, st),
+                                       args, st))
+        return out
+
+    def driver_modules(self) -> dict[str, str]:
+        """Shell name -> shell module target of every driver of this board."""
+        return {d.command: d.target for d in self.drivers()}
+
+    def place(self, name: str) -> DevicePlace:
+        """Where device ``name`` (or the device of driver ``name``) sits: :class:`DevicePlace`."""
+        for bus in self.spi:
+            for dev in bus.devices:
+                if name in (dev.name, dev.driver):
+                    return DevicePlace(dev.name, "spi", bus.name, bus.number, cs=dev.cs,
+                                       drdy=dev.drdy, rotation=dev.rotation)
+        for ibus in self.i2c:
+            for idev in ibus.devices:
+                if name in (idev.name, idev.driver):
+                    return DevicePlace(idev.name, "i2c", ibus.name, ibus.number,
+                                       address=idev.address, external=ibus.external,
+                                       drdy=idev.drdy, rotation=idev.rotation)
+        for u in self.uarts:
+            if u.external_model is not None and name in (u.role, u.driver):
+                n = u.device[-1]
+                return DevicePlace(u.role, "uart", u.name, int(n) if n.isdigit() else 0,
+                                   external=True, device=u.device)
+        raise KeyError(f"{self.name} has no device {name!r}")
+
+    def with_device(self, bus: str, device: Device) -> BoardSpecData:
+        """This spec with ``device`` added at the end of ``bus`` (validated, as a new board)."""
+        if isinstance(device, SpiDevice):
+            if bus not in {b.name for b in self.spi}:
+                raise SpecError(f"board {self.name}: no SPI bus {bus!r}")
+            spi = tuple(replace(b, devices=b.devices + (device,)) if b.name == bus else b
+                        for b in self.spi)
+            return replace(self, spi=spi)
+        if bus not in {b.name for b in self.i2c}:
+            raise SpecError(f"board {self.name}: no I2C bus {bus!r}")
+        i2c = tuple(replace(b, devices=b.devices + (device,)) if b.name == bus else b
+                    for b in self.i2c)
+        return replace(self, i2c=i2c)
+
+    def without_device(self, name: str) -> BoardSpecData:
+        """This spec without device ``name`` (a bus device, or the device plugged into a
+        UART's connector, by its role): its model is not built and its driver not started."""
+        spi = tuple(replace(b, devices=tuple(d for d in b.devices if d.name != name))
+                    for b in self.spi)
+        i2c = tuple(replace(b, devices=tuple(d for d in b.devices if d.name != name))
+                    for b in self.i2c)
+        uarts = tuple(replace(u, external_model=None, driver="", driver_class="",
+                              driver_args=()) if u.role == name and u.external_model else u
+                      for u in self.uarts)
+        out = replace(self, spi=spi, i2c=i2c, uarts=uarts)
+        if out == self:
+            raise SpecError(f"board {self.name}: no device {name!r} to remove")
+        return out
 
     def device(self, name: str) -> SpiDevice | I2cDevice:
         for bus in self.spi:
@@ -220,20 +409,22 @@ FMU_V2 = BoardSpecData(
     spi=(
         SpiBusSpec("SPI1", 1, 84_000_000, (
             SpiDevice("mpu6000", "mpu6000", cs="PC2", drdy=("PD15",),
-                      about="6-axis IMU, INT on PD15"),
-            SpiDevice("l3gd20", "l3gd20", cs="PC13", drdy=("PB0",), about="gyro, DRDY/INT2"),
+                      about="6-axis IMU, INT on PD15", driver="mpu6000"),
+            SpiDevice("l3gd20", "l3gd20", cs="PC13", drdy=("PB0",), about="gyro, DRDY/INT2",
+                      driver="l3gd20"),
             SpiDevice("lsm303d", "lsm303d", cs="PC15", drdy=("PB4", "PB1"),
-                      about="accel (INT1 PB4) + mag (INT2 PB1)"),
-            SpiDevice("ms5611", "ms5611", cs="PD7", about="barometer"),
+                      about="accel (INT1 PB4) + mag (INT2 PB1)", driver="lsm303d"),
+            SpiDevice("ms5611", "ms5611", cs="PD7", about="barometer", driver="ms5611"),
         )),
         SpiBusSpec("SPI2", 2, 42_000_000, (
-            SpiDevice("fram", "fm25v01", cs="PD10", about="16 KiB FRAM: parameters, dataman"),
+            SpiDevice("fram", "fm25v01", cs="PD10", about="16 KiB FRAM: parameters, dataman",
+                      driver="mtd", stage="storage"),
         )),
     ),
     i2c=(
         I2cBusSpec("I2C1", 1, 400_000, external=True, devices=(
             I2cDevice("hmc5883", "hmc5883", 0x1E, external=True,
-                      about="compass in the GPS module"),
+                      about="compass in the GPS module", driver="hmc5883", driver_args=("-X",)),
         )),
         I2cBusSpec("I2C2", 2, 400_000, external=False),
     ),
@@ -245,7 +436,8 @@ FMU_V2 = BoardSpecData(
         UartSpec("USART3", "/dev/ttyS2", "telem2", 57_600, port="telem2",
                  about="TELEM2, MAVLink or companion"),
         UartSpec("UART4", "/dev/ttyS3", "gps", 9_600, external_model="ublox_m8",
-                 about="GPS port: u-blox M8 module"),
+                 about="GPS port: u-blox M8 module", driver="gps",
+                 driver_args=("-d", "/dev/ttyS3")),
         UartSpec("USART6", "/dev/ttyS4", "io_link", 1_500_000, port="io_link",
                  about="PX4IO link, 1.5 Mbit/s, DMA both ways"),
         UartSpec("UART7", "/dev/ttyS5", "console", 57_600, port="console",

@@ -28,7 +28,8 @@ from typing import Protocol
 from mypy_extensions import mypyc_attr
 
 from firmware.platform import Platform
-from firmware.platform.perf import PC_COUNT, PC_ELAPSED, PC_INTERVAL
+from firmware.platform.perf import PC_COUNT, PC_ELAPSED, PC_INTERVAL, PerfCounter
+from firmware.platform.uorb import Publication
 from firmware.platform.workqueue import WorkItem
 
 __all__ = ["DeviceId", "BUS_TYPE_I2C", "BUS_TYPE_SPI", "BUS_TYPE_SERIAL", "I2cAddress",
@@ -111,14 +112,30 @@ class SensorDriver(WorkItem):
 
     def __init__(self, platform: Platform, name: str, wq: str) -> None:
         super().__init__(platform, name, wq)
-        perf = platform.perf
-        self.perf_cycle = perf.alloc(PC_ELAPSED, f"{name}: read")
-        self.perf_interval = perf.alloc(PC_INTERVAL, f"{name}: run interval")
-        self.perf_bad_register = perf.alloc(PC_COUNT, f"{name}: bad register")
-        self.perf_bad_transfer = perf.alloc(PC_COUNT, f"{name}: bad transfer")
-        self.perf_missed = perf.alloc(PC_COUNT, f"{name}: missed samples")
+        #: what this driver took from the platform, so that whoever owns it (its shell module,
+        #: :class:`firmware.drivers.modules.DriverModule`) can give it back at ``stop``: a
+        #: restarted driver then has one set of counters and its old uORB instance again
+        self.own_perf: list[PerfCounter] = []
+        self.own_pubs: list[Publication] = []
+        self.perf_cycle = self.perf_alloc(PC_ELAPSED, "read")
+        self.perf_interval = self.perf_alloc(PC_INTERVAL, "run interval")
+        self.perf_bad_register = self.perf_alloc(PC_COUNT, "bad register")
+        self.perf_bad_transfer = self.perf_alloc(PC_COUNT, "bad transfer")
+        self.perf_missed = self.perf_alloc(PC_COUNT, "missed samples")
         self.running = False
         self.error_count = 0
+
+    def perf_alloc(self, kind: str, what: str) -> PerfCounter:
+        """A perf counter named ``"<driver>: <what>"`` (PX4's names), recorded in ``own_perf``."""
+        pc = self.platform.perf.alloc(kind, f"{self.name}: {what}")
+        self.own_perf.append(pc)
+        return pc
+
+    def advertise_multi(self, topic: str) -> Publication:
+        """The first free instance of ``topic`` (redundant sensors), recorded in ``own_pubs``."""
+        pub = self.platform.orb.advertise_multi(topic)
+        self.own_pubs.append(pub)
+        return pub
 
     # Drivers implement probe() (return None when OK, else the reason) and _start().
     def probe(self) -> str | None:  # pragma: no cover - abstract
@@ -129,16 +146,21 @@ class SensorDriver(WorkItem):
 
     def start(self) -> bool:
         """Probe and start; False (and a message in dmesg) if the device is not right."""
+        return self.try_start() is None
+
+    def try_start(self) -> str | None:
+        """Probe and start: None when running, else the reason it did not start (also in
+        dmesg), handed to the caller directly (``mpu6000 start`` prints it)."""
         if self.running:
-            return True
+            return None
         why = self.probe()
         if why is not None:
             self.platform.error(self.name, f"not starting: {why}")
-            return False
+            return why
         self.running = True
         self._start()
         self.platform.info(self.name, "started")
-        return True
+        return None
 
     def stop(self) -> None:
         self.schedule_clear()

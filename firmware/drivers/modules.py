@@ -1,9 +1,20 @@
 """The shell face of the device drivers: ``mpu6000 start``, ``gps start -d /dev/ttyS3``, ...
 
-A driver module finds its bus handle and pins on the board it runs on (``system.hw``: the
-board object, which offers ``spi_handle(device)``, ``gpio``, ``i2c``, ``uart_by_device(tty)``),
-builds the driver, and probes it. A missing or wrong chip makes ``start`` fail with the
-driver's own reason, as ``mpu6000 start`` prints "no instance started" on a real board.
+A driver module finds where its device sits in the board's spec (``system.hw.spec.place(name)``:
+bus, address or chip select, data-ready pins, rotation: :class:`board.specs.DevicePlace`), takes
+the bus handle and pins from the board it runs on (``system.hw``: the board object, which offers
+``spi_handle(device)``, ``gpio``, ``i2c``, ``uart_by_device(tty)``), builds the driver and starts
+it. Nothing about where a device is wired is written here: it is one entry in the spec.
+
+The module owns its driver's life cycle: the driver is its work item, and the perf counters
+and uORB advertisements the driver takes are the module's (``SensorDriver.own_perf`` and
+``own_pubs`` are the module's own lists), so ``stop`` releases them and ``start`` after
+``stop`` publishes on the same uORB instance again with one set of counters. A missing or
+wrong chip makes ``start`` fail with the driver's own reason (``SensorDriver.try_start``), as
+``mpu6000 start`` prints "no instance started" on a real board.
+
+``firmware="sensors"`` boards start the same drivers without a shell: :meth:`DriverModule.build`
+is what both use.
 """
 
 from __future__ import annotations
@@ -17,7 +28,12 @@ __all__ = ["DriverModule", "Mpu6000Module", "L3gd20Module", "Lsm303dModule", "Ms
 
 
 class DriverModule(ModuleBase):
-    """A module owning one driver object with ``start() -> bool``, ``stop()``, ``status()``."""
+    """A module owning one driver object with ``try_start() -> str | None``, ``stop()``,
+    ``status()`` (a :class:`~firmware.drivers.device.SensorDriver`).
+
+    Subclasses implement :meth:`build`: the driver for a device at a
+    :class:`~board.specs.DevicePlace` on a board, from the start options and parameters.
+    """
 
     OPTIONS: ClassVar[str] = ""  # single-letter flags accepted before/after ``start``
 
@@ -29,22 +45,28 @@ class DriverModule(ModuleBase):
     @classmethod
     def instantiate(cls, system: Any, args: list[str]) -> DriverModule:
         inst = cls(system, args)
+        inst.opts = cls.parse_options(args)
+        return inst
+
+    @classmethod
+    def parse_options(cls, args: list[str] | tuple[str, ...]) -> dict[str, str | bool]:
+        """``OPTIONS`` flags (``X``, or ``d:`` with a value) from a start command line."""
+        opts: dict[str, str | bool] = {}
         i = 0
         while i < len(args):
             a = args[i]
             if not a.startswith("-") or len(a) != 2 or a[1] not in cls.OPTIONS.replace(":", ""):
                 raise UsageError(f"unknown option {a!r}")
             key = a[1]
-            takes_value = f"{key}:" in cls.OPTIONS
-            if takes_value:
+            if f"{key}:" in cls.OPTIONS:
                 if i + 1 >= len(args):
                     raise UsageError(f"option {a} needs a value")
-                inst.opts[key] = args[i + 1]
+                opts[key] = args[i + 1]
                 i += 2
             else:
-                inst.opts[key] = True
+                opts[key] = True
                 i += 1
-        return inst
+        return opts
 
     @property
     def hw(self) -> Any:
@@ -53,15 +75,36 @@ class DriverModule(ModuleBase):
             raise ModuleError("this system has no board hardware")
         return hw
 
-    def make_driver(self) -> Any:  # pragma: no cover - abstract
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:  # pragma: no cover - abstract
+        """The driver for the device at ``place`` (:class:`board.specs.DevicePlace`) on the
+        board ``hw``; not started."""
         raise NotImplementedError
 
+    def make_driver(self) -> Any:
+        hw = self.hw
+        try:
+            place = hw.spec.place(self.name)
+        except KeyError:
+            raise ModuleError(f"no {self.name} device in the board's spec") from None
+        return self.build(self.platform, hw, place, self.opts,
+                          getattr(self.system, "params", None))
+
     def _start(self) -> None:
-        self.driver = self.make_driver()
-        if not self.driver.start():
-            why = next((text for _t, sev, mod, text in reversed(self.platform.dmesg)
-                        if mod == self.driver.name and sev <= 3), "probe failed")
-            self.driver.stop()
+        driver = self.driver = self.make_driver()
+        # The driver's resources are this module's: released by ModuleBase.stop (also when
+        # this start fails), whatever the driver takes later (a lazy advertisement).
+        self.add_work_item(driver)
+        own_perf = getattr(driver, "own_perf", None)
+        if own_perf is not None:
+            self.perf_counters = own_perf
+        own_pubs = getattr(driver, "own_pubs", None)
+        if own_pubs is not None:
+            self.publications = own_pubs
+        why = driver.try_start()
+        if why is not None:
+            driver.stop()
             raise ModuleError(f"no instance started ({why})")
 
     def _stop(self) -> None:
@@ -72,48 +115,67 @@ class DriverModule(ModuleBase):
         return self.driver.status().splitlines() if self.driver is not None else []
 
 
+def _pin(hw: Any, place: Any, i: int = 0) -> Any:
+    """The board pin of the device's ``i``-th data-ready line, or None (poll)."""
+    return hw.gpio.pin(place.drdy[i]) if len(place.drdy) > i else None
+
+
+def _rotation(place: Any) -> dict[str, Any]:
+    """The spec's rotation as a keyword, or nothing (the driver's own default)."""
+    return {} if place.rotation is None else {"rotation": place.rotation}
+
+
 class Mpu6000Module(DriverModule):
     NAME = "mpu6000"
     DESCRIPTION = ("InvenSense MPU6000 IMU on SPI1 (accel + gyro, 8 kHz FIFO read at "
                    "IMU_GYRO_RATEMAX)")
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.imu.mpu6000 import Mpu6000Driver, gyro_rate_limit
 
-        return Mpu6000Driver(self.platform, self.hw.spi_handle("mpu6000"),
-                             drdy_pin=self.hw.gpio.pin("PD15"),
-                             max_rate_hz=gyro_rate_limit(getattr(self.system, "params", None)))
+        return Mpu6000Driver(platform, hw.spi_handle(place.name), drdy_pin=_pin(hw, place),
+                             bus=place.bus_number, max_rate_hz=gyro_rate_limit(params),
+                             **_rotation(place))
 
 
 class L3gd20Module(DriverModule):
     NAME = "l3gd20"
     DESCRIPTION = "ST L3GD20 gyroscope on SPI1 (760 Hz, DRDY on PB0)"
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.imu.l3gd20 import L3gd20Driver
 
-        return L3gd20Driver(self.platform, self.hw.spi_handle("l3gd20"),
-                            drdy_pin=self.hw.gpio.pin("PB0"))
+        return L3gd20Driver(platform, hw.spi_handle(place.name), drdy_pin=_pin(hw, place),
+                            bus=place.bus_number, **_rotation(place))
 
 
 class Lsm303dModule(DriverModule):
     NAME = "lsm303d"
     DESCRIPTION = "ST LSM303D accelerometer + magnetometer on SPI1 (polled)"
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.imu.lsm303d import Lsm303dDriver
 
-        return Lsm303dDriver(self.platform, self.hw.spi_handle("lsm303d"))
+        # polled: PX4's driver does not use INT1/INT2 (the spec wires them for the model)
+        return Lsm303dDriver(platform, hw.spi_handle(place.name), **_rotation(place))
 
 
 class Ms5611Module(DriverModule):
     NAME = "ms5611"
     DESCRIPTION = "MEAS MS5611 barometer on SPI1"
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.barometer.ms5611 import Ms5611Driver
 
-        return Ms5611Driver(self.platform, self.hw.spi_handle("ms5611"))
+        return Ms5611Driver(platform, hw.spi_handle(place.name), bus=place.bus_number)
 
 
 class Hmc5883Module(DriverModule):
@@ -123,12 +185,20 @@ class Hmc5883Module(DriverModule):
     USAGE = ("-X  external bus (the GPS module's compass, default)", "-I  internal bus",
              "-T  run the self-test at start")
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
 
-        bus = 2 if self.opts.get("I") else 1
-        return Hmc5883Driver(self.platform, self.hw.i2c[f"I2C{bus}"].device(0x1E), bus=bus,
-                             external=bus == 1, self_test=bool(self.opts.get("T")))
+        bus_name, bus, external = place.bus, place.bus_number, place.external
+        if opts.get("I") or opts.get("X"):  # PX4's bus choice: the spec's address on it
+            want_external = not opts.get("I")
+            ibus = next((b for b in hw.spec.i2c if b.external == want_external), None)
+            if ibus is None:
+                raise ModuleError(f"no {'external' if want_external else 'internal'} I2C bus")
+            bus_name, bus, external = ibus.name, ibus.number, ibus.external
+        return Hmc5883Driver(platform, hw.i2c[bus_name].device(place.address), bus=bus,
+                             external=external, self_test=bool(opts.get("T")))
 
 
 class GpsModule(DriverModule):
@@ -137,29 +207,33 @@ class GpsModule(DriverModule):
     OPTIONS = "d:"
     USAGE = ("-d DEV  serial device (default /dev/ttyS3, the GPS port)",)
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.gps.gps import GpsDriver
 
-        dev = str(self.opts.get("d", "/dev/ttyS3"))
-        uart = self.hw.uart_by_device(dev)
+        dev = str(opts.get("d", place.device))
+        uart = hw.uart_by_device(dev)
         if uart is None:
             raise ModuleError(f"no serial device {dev}")
-        return GpsDriver(self.platform, uart, tty=dev.rsplit("/", 1)[-1])
+        return GpsDriver(platform, uart, tty=dev.rsplit("/", 1)[-1])
 
 
 class MtdModule(DriverModule):
     NAME = "mtd"
     DESCRIPTION = "FM25V01 FRAM on SPI2: parameter and waypoint partitions"
 
-    def make_driver(self) -> Any:
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
         from firmware.drivers.mtd.fram import FramMtd
 
-        return FramMtd(self.platform, self.hw.spi_handle("fram"))
+        return FramMtd(platform, hw.spi_handle(place.name))
 
     def _start(self) -> None:
         self.driver = self.make_driver()
         if not self.driver.start():
-            raise ModuleError("no FRAM found on SPI2")
+            raise ModuleError(f"no FRAM found on {self.hw.spec.place(self.name).bus}")
 
     def _stop(self) -> None:
         self.driver.running = False

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Final
 
 from mypy_extensions import mypyc_attr
 
+from board.specs import FMU_V2, BoardSpecData
 from firmware.platform.uorb import Publication, Subscription, SubscriptionCallback
 from firmware.platform.workqueue import WorkItem
 
@@ -31,6 +32,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FMU_V2_MODULES",
+    "STACK_MODULES",
+    "board_modules",
     "ModuleBase",
     "ModuleError",
     "ModuleRegistry",
@@ -269,17 +272,11 @@ class WorkItemModule(ModuleBase):
         raise NotImplementedError(f"{type(self).__name__}.run")
 
 
-#: The FMUv2 board's module table: shell name -> "package.module:Class". Entries whose module
-#: does not exist yet are allowed: starting one prints "not available" and a script goes on.
-#: Owners of drivers/modules: point these at your ModuleBase subclass (or adapter).
-FMU_V2_MODULES: Final[dict[str, str]] = {
-    "mpu6000": "firmware.drivers.modules:Mpu6000Module",
-    "l3gd20": "firmware.drivers.modules:L3gd20Module",
-    "lsm303d": "firmware.drivers.modules:Lsm303dModule",
-    "ms5611": "firmware.drivers.modules:Ms5611Module",
-    "hmc5883": "firmware.drivers.modules:Hmc5883Module",
-    "gps": "firmware.drivers.modules:GpsModule",
-    "mtd": "firmware.drivers.modules:MtdModule",
+#: The flight stack's modules and the drivers that are not a device of the board's spec (the
+#: IO link, the PWM outputs, UAVCAN): shell name -> "package.module:Class". Entries whose
+#: module does not exist yet are allowed: starting one prints "not available" and a script
+#: goes on. The device drivers come from the board's spec (:func:`board_modules`).
+STACK_MODULES: Final[dict[str, str]] = {
     "px4io": "firmware.drivers.px4io:Px4ioModule",
     "fmu": "firmware.drivers.px4fmu:FmuModule",
     "sensors": "firmware.modules.sensors:SensorsModule",
@@ -299,6 +296,20 @@ FMU_V2_MODULES: Final[dict[str, str]] = {
     "failure_injector": "firmware.modules.failure_injector:FailureInjectorModule",
     "load_mon": "firmware.modules.load_mon:LoadMonModule",
 }
+
+
+def board_modules(spec: BoardSpecData) -> dict[str, str]:
+    """The module table of a board: the driver of every device in its spec (a board variant
+    with one more device registers that device's driver, one without a device does not
+    register its driver), then the flight stack's modules."""
+    table = spec.driver_modules()
+    for name, target in STACK_MODULES.items():
+        table.setdefault(name, target)
+    return table
+
+
+#: The FMUv2 board's module table (its spec's drivers and the stack's modules).
+FMU_V2_MODULES: Final[dict[str, str]] = board_modules(FMU_V2)
 
 
 class ModuleRegistry:

@@ -4,6 +4,12 @@ The files are plain text in this folder (``init.d/rcS``, ``init.d/rc.*``,
 ``init.d/airframes/NNNN_name``, ``mixers/``); the shell maps ``/etc/...`` here. This module only
 finds them: :func:`airframes` reads the ``# @name`` headers (as PX4's airframe tooling does) so a
 tool or test can list what ``SYS_AUTOSTART`` may select, and :func:`boot` runs ``rcS``.
+
+One line is written by the board rather than by hand: ``@board_sensors`` (in ``rc.sensors``)
+becomes one ``DRIVER start [options]`` line per sensor device of the board's spec
+(:meth:`board.specs.BoardSpecData.drivers`), in the spec's order, when the shell reads the
+file (:func:`expand`). PX4 writes that list per board (``rc.board_sensors``); here the board's
+spec is the one place a device is put on a board, so a board variant starts its own drivers.
 """
 
 from __future__ import annotations
@@ -14,14 +20,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from board.specs import BoardSpecData
     from firmware.shell import Shell
 
-__all__ = ["RCS", "ROMFS_ROOT", "Airframe", "airframes", "boot"]
+__all__ = ["RCS", "ROMFS_ROOT", "BOARD_SENSORS", "Airframe", "airframes", "boot", "expand"]
 
 #: host folder mounted at /etc
 ROMFS_ROOT = Path(__file__).resolve().parent
 #: the startup script, as an FMU path
 RCS = "/etc/init.d/rcS"
+
+#: the ROMFS line replaced by the board's sensor driver lines
+BOARD_SENSORS = "@board_sensors"
 
 _AIRFRAME_FILE = re.compile(r"^(\d+)_([A-Za-z0-9_]+)$")
 
@@ -52,3 +62,26 @@ def airframes(root: Path = ROMFS_ROOT) -> dict[int, Airframe]:
 def boot(shell: Shell) -> int:
     """Run the startup script on ``shell``; returns its exit status."""
     return shell.run_file(RCS)
+
+
+def board_sensor_lines(board: BoardSpecData | None) -> list[str]:
+    """The nsh lines that start the sensor drivers of ``board`` (None: the FMUv2's spec)."""
+    if board is None:
+        from board.specs import FMU_V2
+
+        board = FMU_V2
+    return [d.line for d in board.drivers("sensors")]
+
+
+def expand(text: str, board: BoardSpecData | None) -> str:
+    """A ROMFS file's text with each ``@board_sensors`` line replaced by
+    :func:`board_sensor_lines` (other text unchanged)."""
+    if BOARD_SENSORS not in text:
+        return text
+    out: list[str] = []
+    for line in text.split("\n"):
+        if line.strip() == BOARD_SENSORS:
+            out.extend(board_sensor_lines(board))
+        else:
+            out.append(line)
+    return "\n".join(out)

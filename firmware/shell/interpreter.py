@@ -213,7 +213,12 @@ class Shell:
         except PathError as exc:
             self.error(who, str(exc))
             return None
-        return self._open_text(who, path, host)
+        text = self._open_text(who, path, host)
+        if text is not None and host.is_relative_to(self.system.romfs_root):
+            from firmware import romfs
+
+            text = romfs.expand(text, self.system.board)  # rc.sensors: the spec's drivers
+        return text
 
     def _open_text(self, who: str, path: str, host: Path) -> str | None:
         try:

@@ -110,12 +110,11 @@ class Ms5611Driver(SensorDriver):
         self.osr = osr
         self.cycle_us = interval_us
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, SPI_DEVICE_BARO, DRV_BARO_DEVTYPE_MS5611)
-        perf = platform.perf
-        self.perf_not_ready = perf.alloc(PC_COUNT, f"{name}: conversion not ready")
-        self.perf_range = perf.alloc(PC_COUNT, f"{name}: out of range")
-        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck")
-        self.perf_step = perf.alloc(PC_COUNT, f"{name}: pressure step")
-        self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
+        self.perf_not_ready = self.perf_alloc(PC_COUNT, "conversion not ready")
+        self.perf_range = self.perf_alloc(PC_COUNT, "out of range")
+        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck")
+        self.perf_step = self.perf_alloc(PC_COUNT, "pressure step")
+        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         self.prom: list[int] = []
         self.stuck = False
         self._phase = 0
@@ -161,7 +160,7 @@ class Ms5611Driver(SensorDriver):
         return None
 
     def _start(self) -> None:
-        self._pub = self.platform.orb.advertise_multi("sensor_baro")
+        self._pub = self.advertise_multi("sensor_baro")
         self._phase = 0
         self._collect = None
         self.schedule_now()

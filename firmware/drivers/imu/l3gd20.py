@@ -117,11 +117,10 @@ class L3gd20Driver(SensorDriver):
         self.drdy_pin = drdy_pin
         self.rotation = sensor_to_board(rotation, name)
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_GYR_DEVTYPE_L3GD20).value
-        perf = platform.perf
-        self.perf_duplicate = perf.alloc(PC_COUNT, f"{name}: duplicates")
-        self.perf_drdy_timeout = perf.alloc(PC_COUNT, f"{name}: DRDY timeout")
-        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
-        self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
+        self.perf_duplicate = self.perf_alloc(PC_COUNT, "duplicates")
+        self.perf_drdy_timeout = self.perf_alloc(PC_COUNT, "DRDY timeout")
+        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck data")
+        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         self._pub: Any = None
         self._msg = platform.orb.new("sensor_gyro")
         self._state = STATE_RESET
@@ -172,7 +171,7 @@ class L3gd20Driver(SensorDriver):
 
     def _start(self) -> None:
         if self._pub is None:
-            self._pub = self.platform.orb.advertise_multi("sensor_gyro")
+            self._pub = self.advertise_multi("sensor_gyro")
         if self.drdy_pin is not None:
             self.drdy_pin.attach_interrupt(self._drdy_isr, rising=True)
         self._state = STATE_RESET

@@ -122,12 +122,11 @@ class Lsm303dDriver(SensorDriver):
         self.accel_device_id = DeviceId(BUS_TYPE_SPI, bus, address,
                                         DRV_ACC_DEVTYPE_LSM303D).value
         self.mag_device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_MAG_DEVTYPE_LSM303D).value
-        perf = platform.perf
-        self.perf_fifo_overflow = perf.alloc(PC_COUNT, f"{name}: FIFO overflow")
-        self.perf_fifo_empty = perf.alloc(PC_COUNT, f"{name}: FIFO empty")
-        self.perf_mag_duplicate = perf.alloc(PC_COUNT, f"{name}: mag duplicates")
-        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
-        self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
+        self.perf_fifo_overflow = self.perf_alloc(PC_COUNT, "FIFO overflow")
+        self.perf_fifo_empty = self.perf_alloc(PC_COUNT, "FIFO empty")
+        self.perf_mag_duplicate = self.perf_alloc(PC_COUNT, "mag duplicates")
+        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck data")
+        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         orb = platform.orb
         self._accel_pub: Any = None
         self._mag_pub: Any = None
@@ -180,10 +179,9 @@ class Lsm303dDriver(SensorDriver):
         return None
 
     def _start(self) -> None:
-        orb = self.platform.orb
         if self._accel_pub is None:
-            self._accel_pub = orb.advertise_multi("sensor_accel")
-            self._mag_pub = orb.advertise_multi("sensor_mag")
+            self._accel_pub = self.advertise_multi("sensor_accel")
+            self._mag_pub = self.advertise_multi("sensor_mag")
         self._state = STATE_RESET
         self.schedule_now()
 

@@ -142,13 +142,12 @@ class Mpu6000Driver(SensorDriver):
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_IMU_DEVTYPE_MPU6000).value
         self.samples_per_publish = records
         self.publish_interval_us = records * RECORD_US
-        perf = platform.perf
-        self.perf_fifo_empty = perf.alloc(PC_COUNT, f"{name}: FIFO empty")
-        self.perf_fifo_overflow = perf.alloc(PC_COUNT, f"{name}: FIFO overflow")
-        self.perf_fifo_reset = perf.alloc(PC_COUNT, f"{name}: FIFO reset")
-        self.perf_drdy_timeout = perf.alloc(PC_COUNT, f"{name}: DRDY timeout")
-        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck data")
-        self.perf_reset = perf.alloc(PC_COUNT, f"{name}: reset")
+        self.perf_fifo_empty = self.perf_alloc(PC_COUNT, "FIFO empty")
+        self.perf_fifo_overflow = self.perf_alloc(PC_COUNT, "FIFO overflow")
+        self.perf_fifo_reset = self.perf_alloc(PC_COUNT, "FIFO reset")
+        self.perf_drdy_timeout = self.perf_alloc(PC_COUNT, "DRDY timeout")
+        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck data")
+        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         self.state = RESET
         self.product_id: int | None = None
         self.accel_scale = ACCEL_SCALE
@@ -174,8 +173,8 @@ class Mpu6000Driver(SensorDriver):
         self._fifo_tx: dict[int, bytes] = {}
         self._fifo_unpack: dict[int, Any] = {}  # records -> compiled big-endian unpack
         orb = platform.orb
-        self._pub_accel = orb.advertise_multi("sensor_accel")
-        self._pub_gyro = orb.advertise_multi("sensor_gyro")
+        self._pub_accel = self.advertise_multi("sensor_accel")
+        self._pub_gyro = self.advertise_multi("sensor_gyro")
         self._accel = orb.new("sensor_accel", device_id=self.device_id)
         self._gyro = orb.new("sensor_gyro", device_id=self.device_id)
 

@@ -68,9 +68,8 @@ class Hmc5883Driver(SensorDriver):
         self.want_self_test = self_test
         self.device_id = DeviceId(BUS_TYPE_I2C, bus, i2c.addr, DRV_MAG_DEVTYPE_HMC5883)
         self.gain_lsb_per_ga = GAIN_LSB_PER_GA[CRB_RUN >> 5]
-        perf = platform.perf
-        self.perf_range = perf.alloc(PC_COUNT, f"{name}: range (overflow)")
-        self.perf_stuck = perf.alloc(PC_COUNT, f"{name}: stuck")
+        self.perf_range = self.perf_alloc(PC_COUNT, "range (overflow)")
+        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck")
         self.self_test_field_ga: tuple[float, float, float] | None = None
         self.self_test_passed: bool | None = None
         self.stuck = False
@@ -132,7 +131,7 @@ class Hmc5883Driver(SensorDriver):
         return None
 
     def _start(self) -> None:
-        self._pub = self.platform.orb.advertise_multi("sensor_mag")
+        self._pub = self.advertise_multi("sensor_mag")
         self._state = "configure"
         self.schedule_now()
 
