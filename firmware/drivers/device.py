@@ -131,6 +131,12 @@ class SensorDriver(WorkItem):
         self.own_perf.append(pc)
         return pc
 
+    def advertise(self, topic: str, instance: int) -> Publication:
+        """Instance ``instance`` of ``topic`` (a fixed one), recorded in ``own_pubs``."""
+        pub = self.platform.orb.advertise(topic, instance)
+        self.own_pubs.append(pub)
+        return pub
+
     def advertise_multi(self, topic: str) -> Publication:
         """The first free instance of ``topic`` (redundant sensors), recorded in ``own_pubs``."""
         pub = self.platform.orb.advertise_multi(topic)

@@ -232,6 +232,7 @@ class MtdModule(DriverModule):
 
     def _start(self) -> None:
         self.driver = self.make_driver()
+        self.perf_counters = self.driver.own_perf  # the module's: freed at stop
         if not self.driver.start():
             raise ModuleError(f"no FRAM found on {self.hw.spec.place(self.name).bus}")
 

@@ -88,3 +88,19 @@ def test_a_failed_start_says_why_and_leaves_nothing(board):
     assert sorted(n.instance for n in board.platform.orb.nodes()
                   if n.name == "sensor_mag" and n.advertised) == advertised
     assert board.ctl_shell("hmc5883 start") == (0, "")  # the right chip again
+
+
+def test_the_gps_and_mtd_restart_with_one_set_of_counters_and_one_work_item(board):
+    """The other two drivers of the spec: the GPS (a UART connector's device, advertising with
+    its first fix) and the FRAM's MTD (no work item: its counters are what it holds)."""
+    for name in ("gps", "mtd"):
+        perf = [pc.name for pc in board.platform.perf.counters if pc.name.startswith(name + ":")
+                or pc.name.startswith("fram:") and name == "mtd"]
+        assert perf
+        assert board.ctl_shell(f"{name} stop") == (0, ""), name
+        assert board.ctl_shell(f"{name} start") == (0, ""), name
+        again = [pc.name for pc in board.platform.perf.counters
+                 if pc.name.startswith(name + ":") or pc.name.startswith("fram:") and name == "mtd"]
+        assert sorted(again) == sorted(perf), name
+    assert len([i for q in board.platform.wq for i in q.items if i.name == "gps"]) == 1
+    assert board.ctl_shell("param get SDLOG_PROFILE")[0] == 0  # parameters still on the FRAM

@@ -78,9 +78,8 @@ class GpsDriver(SensorDriver):
         self.sat_info = sat_info
         self.bus = int(tty[-1]) if tty[-1].isdigit() else 0
         self.device_id = DeviceId(BUS_TYPE_SERIAL, self.bus, 0, DEVTYPE_UBX)
-        perf = platform.perf
-        self.perf_bad_checksum = perf.alloc(PC_COUNT, f"{name}: bad checksum")
-        self.perf_timeouts = perf.alloc(PC_COUNT, f"{name}: timeouts")
+        self.perf_bad_checksum = self.perf_alloc(PC_COUNT, "bad checksum")
+        self.perf_timeouts = self.perf_alloc(PC_COUNT, "timeouts")
         self.parser = UbxParser()
         self.configured = False
         self.board: int | None = None
@@ -361,7 +360,7 @@ class GpsDriver(SensorDriver):
         msg.timestamp_time_relative = 0
         pub = self._pub
         if pub is None:
-            pub = self._pub = self.platform.orb.advertise("sensor_gps", self.device_index)
+            pub = self._pub = self.advertise("sensor_gps", self.device_index)
         pub.publish(msg)
         self.publish_count += 1
         self.perf_interval.count()

@@ -31,7 +31,6 @@ from firmware.platform.perf import PC_COUNT
 __all__ = ["DRV_MAG_DEVTYPE_HMC5883", "GAIN_LSB_PER_GA", "Hmc5883Driver"]
 
 DRV_MAG_DEVTYPE_HMC5883: Final = 0x01
-I2C_ADDRESS: Final = 0x1E
 
 REG_CRA: Final = 0x00
 REG_CRB: Final = 0x01
@@ -58,7 +57,8 @@ NAK_WARN: Final = 10
 
 
 class Hmc5883Driver(SensorDriver):
-    """Reads an HMC5883L at 0x1E through ``i2c`` and publishes ``sensor_mag``."""
+    """Reads an HMC5883L through ``i2c`` (the handle bound to the address the board's spec
+    gives, 0x1E on the FMUv2) and publishes ``sensor_mag``."""
 
     def __init__(self, platform: Platform, i2c: I2cDeviceHandle, name: str = "hmc5883", bus: int = 1,
                  external: bool = True, self_test: bool = False) -> None:

@@ -88,6 +88,8 @@ class FramMtd:
         self.perf_read = perf.alloc(PC_ELAPSED, f"{name}: read")
         self.perf_write = perf.alloc(PC_ELAPSED, f"{name}: write")
         self.perf_errors = perf.alloc(PC_COUNT, f"{name}: errors")
+        #: the counters above, for the shell module that owns them (freed at ``mtd stop``)
+        self.own_perf = [self.perf_read, self.perf_write, self.perf_errors]
         self.bytes_read = 0
         self.bytes_written = 0
 
