@@ -37,6 +37,11 @@ Firmware start-up (``firmware=``):
   are written to FRAM first, as a user would set them and reboot. The shell also serves the
   console UART (UART7, port ``console``) and :meth:`FmuV2Board.ctl_shell`.
 * ``"sensors"``: only the sensor drivers (PX4's ``rc.board_sensors``), for driver work.
+
+Either way the drivers started, and the shell modules registered, are those of the spec's
+devices (``spec.drivers()``, ``board_modules(spec)``): a board variant
+(``spec=FMU_V2.with_device("I2C2", entry).without_device("ms5611")``) builds, registers and
+starts its own set with no other change (docs/driver_guide.md, "Adding a device").
 * ``"none"``: bare hardware.
 """
 

@@ -4,6 +4,13 @@ A spec names everything a board builder needs and nothing about behaviour. Devic
 named (``model="mpu6000"``) and found in :data:`MODELS`, imported only when a board is built,
 so a spec can be read (by docs, a shell ``ver`` command, tests) without importing any model.
 
+A device is put on a board by one entry here, and only here: its bus, chip select or address,
+data-ready pins, rotation, and its driver (shell name, options; the shell module from
+:data:`DRIVERS` or ``driver_class``). The board derives from the spec which drivers it starts
+(:meth:`BoardSpecData.drivers`) and which it registers with the shell; a driver finds its device
+through :meth:`BoardSpecData.place`. Board variants are new specs:
+:meth:`BoardSpecData.with_device` and :meth:`BoardSpecData.without_device`.
+
 Validation happens when a spec is built: duplicate chip selects or pins, an I2C address used
 twice on one bus, a device on a bus the board does not have, an unknown model, a data-ready
 line on a pin that something else drives, all raise :class:`SpecError` naming the problem.
