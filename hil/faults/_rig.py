@@ -4,9 +4,33 @@ from __future__ import annotations
 
 from typing import Any
 
-from hil.faults import FaultError, Rig
+from hil.faults import FaultError, Rig, orch_call
 
-__all__ = ["device", "world", "number"]
+__all__ = ["board_call", "device", "orchestrator", "world", "number", "vector"]
+
+
+def board_call(rig: Rig, fault: str, board: str, method: str, *args: Any) -> Any:
+    """A control hook of a board (``ctl_<method>``), on whatever rig: the one way a kind
+    changes a board. A refusal (no such board, bus, UART or chip) becomes a FaultError naming
+    the fault. A bare ``(orch, dev)`` rig without ``call`` (as some tests build around one
+    board) is served through its ``orch.call``."""
+    call = getattr(rig, "call", None)
+    try:
+        if call is None:
+            return orch_call(rig.orch, board, method, *args)
+        return call(board, method, *args)
+    except FaultError as exc:
+        raise FaultError(f"fault {fault}: {exc}") from None
+
+
+def orchestrator(rig: Rig, fault: str) -> Any:
+    """The orchestrator, for kinds that act between board processes (a killed or restarted
+    process, a wire between two boards); in-process boards have none."""
+    if rig.orch is None:
+        raise FaultError(f"fault {fault} acts on the orchestrated system (a board process or a "
+                         f"wire between boards); this rig has in-process boards "
+                         f"({', '.join(rig.boards())})")
+    return rig.orch
 
 
 def device(rig: Rig, name: str, fault: str) -> Any:

@@ -23,15 +23,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from hil.faults import NS_PER_S, FaultError, Rig, fault_kind
-from hil.faults._rig import number
-from hil.faults.bus import board_call
+from hil.faults import NS_PER_S, FaultError, Rig, fault_kind, switch_kind
+from hil.faults._rig import board_call, number, orchestrator
 
 BOARDS = ("fmu", "io")
 
 
 def _check_running(orch: Any, target: str, kind: str) -> None:
-    if target in orch.dead:
+    if orch is not None and target in orch.dead:
         raise FaultError(f"fault {kind}: board {target} is already dead ({orch.dead[target]})")
 
 
@@ -42,8 +41,9 @@ def _check_running(orch: Any, target: str, kind: str) -> None:
                 "to the pilot's RC when manual override is allowed. For the IO: the FMU's "
                 "px4io driver loses its link and the motors get no pulses.")
 def crash_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    _check_running(rig.orch, target, "board.crash")
-    rig.orch.kill(target)
+    orch = orchestrator(rig, "board.crash")
+    _check_running(orch, target, "board.crash")
+    orch.kill(target)
 
 
 def _restart(orch: Any, name: str) -> None:
@@ -59,7 +59,7 @@ def _restart(orch: Any, name: str) -> None:
                 "driver finds it armed and asks the commander to arm again: the in-air "
                 "restart.")
 def reboot_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
-    orch = rig.orch
+    orch = orchestrator(rig, "board.fmu_reboot")
     down_s = float(params["down_s"])
     if down_s < 0:
         raise FaultError(f"fault board.fmu_reboot: negative down_s {down_s}")
@@ -82,97 +82,85 @@ def reboot_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> No
                 "status and configures it again; in flight that is a short loss of thrust.")
 def io_reset_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> None:
     _check_running(rig.orch, target, "board.io_reset")
-    rig.orch.call("io", "reset")
+    board_call(rig, "board.io_reset", "io", "reset")
 
 
 def _hang(board: str) -> Any:
-    def start(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
-        return board_call(rig, f"board.{board}_hang", board, "hang")
+    def apply(rig: Rig, target: str, params: dict[str, Any], on: bool) -> Any:
+        return board_call(rig, f"board.{board}_hang", board, "hang" if on else "release")
 
-    def stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int, token: Any) -> None:
-        board_call(rig, f"board.{board}_hang", board, "release")
-
-    return start, stop
+    return apply
 
 
-_fmu_start, _fmu_stop = _hang("fmu")
-fmu_hang = fault_kind(
-    "board.fmu_hang", level="board",
+switch_kind(
+    "board.fmu_hang", _hang("fmu"), level="board",
     doc="The FMU's CPU halts (a lock-up with interrupts masked, a hard-fault loop without a "
         "watchdog): no firmware, interrupt or timer callback runs and nothing new is sent, but "
         "the process lives and its pins hold their last levels. The IO stops receiving "
         "CONTROLS and after 500 ms declares the FMU lost (ALARM_FMU_LOST) and drives its "
         "failsafe PWM, or hands the motors to the pilot's RC override when allowed. Stopping "
         "the fault resumes the CPU where it was: the interrupts that fell due run first and the "
-        "flight stack catches up from the present time (its estimator sees a gap).")(_fmu_start)
-fmu_hang.stopper(_fmu_stop)  # type: ignore[attr-defined]
-
-_io_start, _io_stop = _hang("io")
-io_hang = fault_kind(
-    "board.io_hang", level="board",
+        "flight stack catches up from the present time (its estimator sees a gap).")
+switch_kind(
+    "board.io_hang", _hang("io"), level="board",
     doc="The IO's CPU halts: its timers keep generating the last PWM (hardware), but nothing "
         "answers the FMU, so the px4io driver times out and reports the IO lost after 10 "
         "failed calls; RC input and the safety switch are no longer processed. Stopping the "
-        "fault resumes the IO firmware.")(_io_start)
-io_hang.stopper(_io_stop)  # type: ignore[attr-defined]
+        "fault resumes the IO firmware.")
 
 
-@fault_kind("board.servo_rail_brownout", level="board", volts=4.2,
+def _servo_rail(rig: Rig, target: str, params: dict[str, Any], on: bool) -> None:
+    name = "board.servo_rail_brownout"
+    volts = number(params, "volts", name, 0.0, 10.0) if on else 5.0
+    board_call(rig, name, "io", "set_servo_rail_v", volts)
+
+
+switch_kind("board.servo_rail_brownout", _servo_rail, level="board", volts=4.2,
             doc="The IO's servo rail (VSERVO, normally 5 V from the BEC) sags to `volts`, as "
                 "when a servo stalls or the BEC fails. The IO measures it on its ADC, reports "
                 "it in its STATUS page (px4io_status.voltage_v) and the FMU logs it.")
-def servo_rail_brownout(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
-    board_call(rig, "board.servo_rail_brownout", "io", "set_servo_rail_v",
-               number(params, "volts", "board.servo_rail_brownout", 0.0, 10.0))
-    return None
 
 
-@servo_rail_brownout.stopper
-def _servo_rail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
-                     token: Any) -> None:
-    board_call(rig, "board.servo_rail_brownout", "io", "set_servo_rail_v", 5.0)
+def _fram_write_fail(rig: Rig, target: str, params: dict[str, Any], on: bool) -> None:
+    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", on)
 
 
-@fault_kind("board.fram_write_fail", level="board",
+switch_kind("board.fram_write_fail", _fram_write_fail, level="board",
             doc="The FMU's FRAM (FM25V01 on SPI2) stops taking writes: its write-enable latch "
                 "never sets after WREN (a failed charge pump, a chip at the end of its life). "
                 "The FRAM driver checks WEL after each WREN and reports 'write enable latch "
                 "did not set'; a parameter save fails and says so ('write to parameter slot n "
                 "failed'); the other slot still holds the last good save, so nothing already "
                 "saved is lost and the next boot loads it.")
-def fram_write_fail(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
-    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", True)
-    return None
 
 
-@fram_write_fail.stopper
-def _fram_write_fail_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
-                          token: Any) -> None:
-    board_call(rig, "board.fram_write_fail", "fmu", "fault", "fram", "write_fail", False)
+def _cpu_overload(rig: Rig, target: str, params: dict[str, Any], on: bool) -> None:
+    name = "board.cpu_overload"
+    if not on:
+        board_call(rig, name, "fmu", "cpu_load", target, 0.0)
+        return
+    frac = number(params, "fraction", name, 0.0, 0.99)
+    period = int(number(params, "period_us", name, 100, 1_000_000))
+    board_call(rig, name, "fmu", "cpu_load", target, frac, period)
 
 
-@fault_kind("board.cpu_overload", level="board", fraction=0.8, period_us=1000,
+switch_kind("board.cpu_overload", _cpu_overload, level="board", fraction=0.8, period_us=1000,
             doc="A work item on a PX4 work queue of the FMU (target the queue, e.g. "
                 "'wq:SPI1', 'wq:rate_ctrl', 'wq:INS0') burns `fraction` of every period_us "
                 "of CPU time: a runaway module or a driver spinning. The queue's other items "
                 "start late by up to that much: sensor samples reach the estimator older, the "
                 "rate controller runs late, visible in the perf counters and in the "
                 "timestamp - timestamp_sample of what the queue publishes.")
-def cpu_overload(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
-    name = "board.cpu_overload"
-    frac = number(params, "fraction", name, 0.0, 0.99)
-    period = int(number(params, "period_us", name, 100, 1_000_000))
-    board_call(rig, name, "fmu", "cpu_load", target, frac, period)
-    return None
 
 
-@cpu_overload.stopper
-def _cpu_overload_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
-                       token: Any) -> None:
-    board_call(rig, "board.cpu_overload", "fmu", "cpu_load", target, 0.0)
+def _sensor_rail(rig: Rig, target: str, params: dict[str, Any], on: bool) -> Any:
+    name = "board.sensor_rail_brownout"
+    if on:
+        _check_running(rig.orch, target, name)
+    return board_call(rig, name, "fmu", "sensor_rail", not on)
 
 
-@fault_kind("board.sensor_rail_brownout", level="board", targets=("fmu",),
+switch_kind("board.sensor_rail_brownout", _sensor_rail, level="board", targets=("fmu",),
             doc="The FMU's sensor 3.3 V rail (VDD_3V3_SENSORS, switched by PE3 on FMUv2) sags "
                 "below the chips' brown-out level while the fault lasts (a short on a sensor "
                 "lead, an overloaded regulator): every chip on it (MPU6000, L3GD20, LSM303D, "
@@ -181,12 +169,3 @@ def _cpu_overload_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                 "through its power-on reset. PX4's drivers see the 0xFF answers and lost "
                 "configuration, reset and re-initialise their chips; the sensors come back "
                 "after the rail with a gap of about 100-200 ms (the MPU6000's 100 ms reset).")
-def sensor_rail_brownout(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
-    _check_running(rig.orch, target, "board.sensor_rail_brownout")
-    return board_call(rig, "board.sensor_rail_brownout", "fmu", "sensor_rail", False)
-
-
-@sensor_rail_brownout.stopper
-def _sensor_rail_back(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
-                      token: Any) -> None:
-    board_call(rig, "board.sensor_rail_brownout", "fmu", "sensor_rail", True)

@@ -11,23 +11,11 @@ from __future__ import annotations
 from typing import Any
 
 from hil.faults import FaultError, Rig, fault_kind
-from hil.faults._rig import number
+from hil.faults._rig import board_call, number, orchestrator
 
 FMU_IO_DIRECTIONS = ("both", "fmu_to_io", "io_to_fmu")
 #: the FMU-IO serial link's two conductors, as the orchestrator routes them
 _FMU_IO_WIRES = {"fmu_to_io": ("fmu", "io_link"), "io_to_fmu": ("io", "fmu_link")}
-
-
-def board_call(rig: Rig, fault: str, board: str, method: str, *args: Any) -> Any:
-    """A control call on a board; a refusal (bad UART name, bad rate) becomes a FaultError."""
-    if board not in rig.orch.handles:
-        raise FaultError(f"fault {fault}: no board {board!r} (boards: "
-                         f"{', '.join(sorted(rig.orch.handles))})")
-    try:
-        return rig.orch.call(board, method, *args)
-    except RuntimeError as exc:
-        last = str(exc).strip().splitlines()[-1]
-        raise FaultError(f"fault {fault}: {last}") from None
 
 
 def _split(target: str, fault: str, what: str) -> tuple[str, str]:
@@ -48,7 +36,7 @@ def _split(target: str, fault: str, what: str) -> tuple[str, str]:
 def fmu_io_link_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
     wires = list(_FMU_IO_WIRES) if target == "both" else [target]
     for w in wires:
-        rig.orch.cut_wire(*_FMU_IO_WIRES[w])
+        orchestrator(rig, "bus.fmu_io_link_cut").cut_wire(*_FMU_IO_WIRES[w])
     return wires
 
 
@@ -56,7 +44,7 @@ def fmu_io_link_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) ->
 def _fmu_io_link_cut_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                           token: Any) -> None:
     for w in token:
-        rig.orch.mend_wire(*_FMU_IO_WIRES[w])
+        orchestrator(rig, "bus.fmu_io_link_cut").mend_wire(*_FMU_IO_WIRES[w])
 
 
 @fault_kind("bus.wire_cut", level="bus",
@@ -67,8 +55,9 @@ def _fmu_io_link_cut_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: i
                 "pin input floats to its pull. Mending restores the present level.")
 def wire_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
     board, port = _split(target, "bus.wire_cut", "port")
+    orch = orchestrator(rig, "bus.wire_cut")
     try:
-        rig.orch.cut_wire(board, port)
+        orch.cut_wire(board, port)
     except ValueError as exc:
         raise FaultError(f"fault bus.wire_cut: {exc}") from None
     return (board, port)
@@ -77,7 +66,7 @@ def wire_cut(rig: Rig, target: str, params: dict[str, Any], t_ns: int) -> Any:
 @wire_cut.stopper
 def _wire_cut_stop(rig: Rig, target: str, params: dict[str, Any], t_ns: int,
                    token: Any) -> None:
-    rig.orch.mend_wire(*token)
+    orchestrator(rig, "bus.wire_cut").mend_wire(*token)
 
 
 @fault_kind("bus.uart_noise", level="bus", bit_error_rate=1e-4, drop_rate=0.0,

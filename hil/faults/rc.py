@@ -20,6 +20,7 @@ Target ``rc`` means every receiver on the rig; ``sbus``, ``dsm`` or ``ppm`` one 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from hil.faults import FaultError, fault_kind
@@ -51,6 +52,25 @@ def _close(windows: Any, item: tuple, t_ns: int) -> None:
             return
 
 
+def _window_kind(name: str, window: str, doc: str, targets: tuple[str, ...] = RC_TARGETS,
+                 payload: Callable[[dict[str, Any]], Any] = lambda p: True,
+                 **params: Any) -> None:
+    """A kind that opens a fault window (the receiver attribute ``window``) on each targeted
+    receiver at its start, with ``payload(params)``, and closes it at its stop."""
+
+    def start(rig: Any, target: str, p: dict[str, Any], t_ns: int) -> list:
+        value = payload(p)
+        return [(rx, _open(getattr(rx, window), t_ns, value))
+                for rx in _receivers(rig, target, name)]
+
+    def stop(rig: Any, target: str, p: dict[str, Any], t_ns: int, token: list) -> None:
+        for rx, item in token:
+            _close(getattr(rx, window), item, t_ns)
+
+    registered: Any = fault_kind(name, level="rc", doc=doc, targets=targets, **params)(start)
+    registered.stopper(stop)
+
+
 @fault_kind("rc.tx_off", level="rc", targets=("rc",),
             doc="The pilot's transmitter is switched off or its battery dies: every receiver "
                 "bound to it loses the link at once and does what its protocol does on loss "
@@ -67,35 +87,16 @@ def tx_off_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token:
     rig.dev["rc"].tx.power(t_ns, True)
 
 
-@fault_kind("rc.out_of_range", level="rc", targets=RC_TARGETS,
-            doc="The receiver loses the RF link with the transmitter still on: out of range, "
-                "a shadowed antenna, 2.4 GHz interference. The receiver behaves as on any link "
-                "loss (see the module doc), and recovers when the link comes back.")
-def oor_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
-    return [(rx, _open(rx._out_of_range, t_ns)) for rx in _receivers(rig, target,
-                                                                       "rc.out_of_range")]
-
-
-@oor_start.stopper
-def oor_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
-    for rx, item in token:
-        _close(rx._out_of_range, item, t_ns)
-
-
-@fault_kind("rc.sbus_failsafe", level="rc", targets=("sbus",),
-            doc="An S.BUS receiver sets its failsafe flag with a good RF link (a receiver "
-                "that decided on failsafe by itself, e.g. on low receiver voltage, or a "
-                "failsafe test from the transmitter). The channels still carry values; the IO "
-                "must treat the frame as RC lost, as PX4's S.BUS decoder does.")
-def sbus_fs_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
-    return [(rx, _open(rx._forced_failsafe, t_ns)) for rx in _receivers(rig, target,
-                                                                          "rc.sbus_failsafe")]
-
-
-@sbus_fs_start.stopper
-def sbus_fs_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
-    for rx, item in token:
-        _close(rx._forced_failsafe, item, t_ns)
+_window_kind("rc.out_of_range", "_out_of_range",
+             "The receiver loses the RF link with the transmitter still on: out of range, "
+             "a shadowed antenna, 2.4 GHz interference. The receiver behaves as on any link "
+             "loss (see the module doc), and recovers when the link comes back.")
+_window_kind("rc.sbus_failsafe", "_forced_failsafe",
+             "An S.BUS receiver sets its failsafe flag with a good RF link (a receiver "
+             "that decided on failsafe by itself, e.g. on low receiver voltage, or a "
+             "failsafe test from the transmitter). The channels still carry values; the IO "
+             "must treat the frame as RC lost, as PX4's S.BUS decoder does.",
+             targets=("sbus",))
 
 
 @fault_kind("rc.frame_loss", level="rc", targets=RC_TARGETS, prob=1.0,
@@ -127,25 +128,20 @@ def loss_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: l
             rx.frame_loss_prob = old_prob
 
 
-@fault_kind("rc.glitch", level="rc", targets=RC_TARGETS, byte_prob=0.2, spike_prob=0.0,
-            doc="Corruption on the receiver's wire or in its decoded channels (EMI on the "
-                "signal lead, a marginal receiver): per frame, with ``byte_prob`` one byte "
-                "(PPM: one spurious edge pair) is damaged, with ``spike_prob`` one channel "
-                "jumps to a random value in a well-formed frame. The IO's decoder must reject "
-                "damaged frames (parity, framing, sync) without declaring RC lost for a few "
-                "bad ones.")
-def glitch_start(rig: Any, target: str, params: dict[str, Any], t_ns: int) -> list:
-    bp, sp = float(params["byte_prob"]), float(params["spike_prob"])
+def _glitch_probs(p: dict[str, Any]) -> tuple[float, float]:
+    bp, sp = float(p["byte_prob"]), float(p["spike_prob"])
     if not (0.0 <= bp <= 1.0 and 0.0 <= sp <= 1.0):
         raise FaultError(f"fault rc.glitch: probabilities must be in [0, 1], got {bp}, {sp}")
-    return [(rx, _open(rx._glitch, t_ns, (bp, sp))) for rx in _receivers(rig, target,
-                                                                           "rc.glitch")]
+    return (bp, sp)
 
 
-@glitch_start.stopper
-def glitch_stop(rig: Any, target: str, params: dict[str, Any], t_ns: int, token: list) -> None:
-    for rx, item in token:
-        _close(rx._glitch, item, t_ns)
+_window_kind("rc.glitch", "_glitch",
+             "Corruption on the receiver's wire or in its decoded channels (EMI on the "
+             "signal lead, a marginal receiver): per frame, with ``byte_prob`` one byte "
+             "(PPM: one spurious edge pair) is damaged, with ``spike_prob`` one channel "
+             "jumps to a random value in a well-formed frame. The IO's decoder must reject "
+             "damaged frames (parity, framing, sync) without declaring RC lost for a few "
+             "bad ones.", payload=_glitch_probs, byte_prob=0.2, spike_prob=0.0)
 
 
 #: receivers that can be plugged into another's connector: UART protocols on UART inputs
