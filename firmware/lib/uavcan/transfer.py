@@ -91,7 +91,7 @@ class RxTransfer:
     """A received transfer: who sent it, to whom, and the decoded DSDL object."""
 
     __slots__ = ("t_ns", "source", "dest", "service", "request", "data_type_id", "transfer_id",
-                 "priority", "payload", "frames")
+                 "priority", "payload", "frames", "tr")
 
     def __init__(self, t_ns: int, tr: Any, frames: int) -> None:
         self.t_ns = t_ns
@@ -104,6 +104,7 @@ class RxTransfer:
         self.priority: int = tr.transfer_priority
         self.payload: Any = tr.payload
         self.frames = frames
+        self.tr: Any = tr  # the dronecan Transfer (shared by the receivers of one frame)
 
     @property
     def type_name(self) -> str:
@@ -185,7 +186,14 @@ class Reassembler:
                 if tail & TAIL_TOGGLE:
                     self._drop("bad_toggle")
                     return None
-                return self._decode(t_ns, [frame])
+                memo = _SINGLE
+                if memo.key == (key, data):  # the frame every other node on the bus just took
+                    self.transfers += 1
+                    return RxTransfer(t_ns, memo.tr, 1)
+                got = self._decode(t_ns, [frame])
+                if got is not None:
+                    memo.key, memo.tr = (key, data), got.tr
+                return got
             if cid.anonymous:
                 self._drop("bad_tail")  # anonymous transfers are single-frame
                 return None
@@ -244,6 +252,22 @@ class Reassembler:
             return None
         self.transfers += 1
         return RxTransfer(t_ns, tr, len(frames))
+
+
+class _SingleFrameMemo:
+    """The last single-frame transfer decoded, by (CAN ID, bytes): a broadcast reaches every
+    node on the bus at once (four ESCs take each RawCommand), and decoding it once saves the
+    dronecan package's DSDL decoding for the others. The decoded object is shared: receivers
+    read it and never modify it. Pure (no state beyond the last frame), so deterministic."""
+
+    __slots__ = ("key", "tr")
+
+    def __init__(self) -> None:
+        self.key: tuple[int, bytes] | None = None
+        self.tr: Any = None
+
+
+_SINGLE: Final = _SingleFrameMemo()
 
 
 def _max_bytes(datatype: Any, cid: Any) -> int:
