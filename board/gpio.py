@@ -39,7 +39,7 @@ import re
 from collections.abc import Callable
 from typing import Any, Final
 
-from board.kernel import PRIO_HW, PRIO_ISR, Event, Kernel, call_in_isr
+from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
 
 __all__ = ["ExtiLine", "Gpio", "Pin", "PinHandler", "PinListener", "call_in_isr"]
 
@@ -101,7 +101,7 @@ class Pin:
         self._ret_t = -1
         self._ret_drive: int | None = None
         #: A return nobody could see turned into a kernel event because something can now.
-        self._ret_entry: Event | None = None
+        self._ret_entry: list | None = None
 
     @property
     def level(self) -> int:
@@ -137,10 +137,9 @@ class Pin:
         entry = self._ret_entry
         if entry is not None:
             self._ret_entry = None
-            Kernel.cancel(entry)
-            due = Kernel.due_ns(entry)
-            if due <= t_ns:  # due already (inside a bus wait): it happens first
-                self._apply(Kernel.event_args(entry)[0], due)
+            entry[3] = None
+            if entry[0] <= t_ns:  # due already (inside a bus wait): it happens first
+                self._apply(entry[4][0], entry[0])
 
     def _materialize(self) -> None:
         """Something may now observe a lazy return: make a future one a kernel event."""
@@ -259,11 +258,12 @@ class Pin:
     def _apply(self, level: int | None, t_ns: int, defer: list | None = None) -> None:
         """The level changes at ``t_ns`` (>= now): listeners, then the EXTI edge.
 
-        Per data-ready edge of the ST chips, so the EXTI part of :meth:`Gpio._edge` is inlined
-        here and the listener snapshot is only taken when there are listeners. ``defer``: a
-        device model's own hardware event at its event time collects the handler calls there
-        and makes them itself once its state is consistent (``Gpio._fire(*args)`` for each),
-        instead of queueing an event per edge (see :meth:`pulse`).
+        The EXTI part: an edge the line is armed for sets its pending bit and queues the
+        handler (an edge while pending is coalesced, as EXTI_PR holds one bit). Per data-ready
+        edge of the ST chips, so the listener snapshot is only taken when there are listeners.
+        ``defer``: a device model's own hardware event at its event time collects the handler
+        calls there and makes them itself once its state is consistent (``Gpio._fire(*args)``
+        for each), instead of queueing an event per edge (see :meth:`pulse`).
         """
         if self._ret_t >= 0 or self._ret_entry is not None:
             self._drop_return(t_ns)
@@ -405,20 +405,6 @@ class Gpio:
             raise ValueError(f"{self.name}.detach: no interrupt attached to {p.name}")
         line.pin = None
         line.rising = line.falling = False
-
-    def _edge(self, pin: Pin, t_ns: int, level: int) -> None:
-        """An edge of ``pin`` at ``t_ns``: set the line's pending bit and queue its handler.
-
-        :meth:`Pin._apply` carries an inlined copy of this (the hot path); keep them alike.
-        """
-        line = self.exti[pin.number]
-        if line.pin is not pin or not (line.rising if level else line.falling):
-            return
-        if line.pending:
-            line.coalesced += 1
-            return
-        line.pending = True
-        self.kernel.post(t_ns, PRIO_ISR, self._fire, (line, pin, t_ns))
 
     def _fire(self, line: ExtiLine, pin: Pin, t_ns: int) -> None:
         line.pending = False

@@ -125,20 +125,6 @@ class SpiTarget:
         return b"\xff" * len(tx)
 
 
-#: Target classes that keep SpiTarget's public select/exchange/deselect (see _plain_target).
-_PLAIN_TARGETS: Final[dict[type, bool]] = {}
-
-
-def _plain_target(cls: type) -> bool:
-    """True if ``cls`` only overrides the hooks, so a transfer may inline the public methods."""
-    plain = _PLAIN_TARGETS.get(cls)
-    if plain is None:
-        plain = _PLAIN_TARGETS[cls] = all(
-            getattr(cls, name) is getattr(SpiTarget, name)
-            for name in ("select", "exchange", "deselect"))
-    return plain
-
-
 class _Cs:
     """One chip-select line and what hangs on it."""
 
@@ -300,26 +286,9 @@ class SpiHandle:
         target = self._line.target
         if target is None:
             return b"\xff" * n if bus.miso_stuck is None else bus.miso_stuck * n
-        clock = self.clock_hz
-        if _PLAIN_TARGETS.get(type(target)) or _plain_target(type(target)):
-            # SpiTarget.select/exchange/deselect inlined for a target that keeps them (all
-            # models do; they override the hooks): a few thousand transfers per virtual second.
-            target.selected = True
-            target.mode = self._mode
-            target.clock_hz = clock
-            limit = target.max_clock_hz
-            too_fast = target._too_fast = limit is not None and clock > limit
-            target._select(t, self._mode, clock)
-            rx = target._clock_too_fast(t, tx) if too_fast else target._exchange(t, tx)
-            if too_fast:
-                target.deselect(t + dur)
-            else:
-                target.selected = False
-                target._deselect(t + dur)
-        else:
-            target.select(t, self._mode, clock)
-            rx = target.exchange(t, tx)
-            target.deselect(t + dur)
+        target.select(t, self._mode, self.clock_hz)
+        rx = target.exchange(t, tx)
+        target.deselect(t + dur)
         if len(rx) != n:
             self._bad_reply(target, n, rx)
         if bus.miso_stuck is not None:

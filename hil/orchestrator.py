@@ -227,12 +227,7 @@ class Orchestrator:
             handle.post_advance(start, until, inputs)
             live.append((name, handle))
         self.exchanges += len(live)
-        world = self.world
-        if world is not None:
-            world.run_until(until)
-            out = world.outputs(until)
-            if out:
-                self._route_all(WORLD, out)
+        self._run_world(until)
         for name, handle in live:
             try:
                 outputs, next_ns[name] = handle.wait_advance()
@@ -293,12 +288,7 @@ class Orchestrator:
         for name, handle in live:  # a board not yet ahead (first quantum, reboot, drained)
             if posted[name] < until:
                 self._post(name, handle, posted[name] if posted[name] > start else start, until)
-        world = self.world
-        if world is not None:
-            world.run_until(until)
-            out = world.outputs(until)
-            if out:
-                self._route_all(WORLD, out)
+        self._run_world(until)
         for name, handle in live:
             if name not in dead and posted[name] < until + q:
                 self._post(name, handle, posted[name], until + q)
@@ -333,6 +323,16 @@ class Orchestrator:
         control call, so that the board is not running while it is asked something)."""
         if self._pending[name]:
             self._collect(name, self.handles[name], self._pending[name][-1][0])
+
+    def _run_world(self, until: int) -> None:
+        """The world to ``until`` (it runs in this process, beside the boards' quanta), and its
+        outputs routed to the boards' inboxes."""
+        world = self.world
+        if world is not None:
+            world.run_until(until)
+            out = world.outputs(until)
+            if out:
+                self._route_all(WORLD, out)
 
     def _route_all(self, board: str, records: list) -> None:
         """:meth:`_route` for a list of records (the per-quantum path, inlined)."""

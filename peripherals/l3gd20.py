@@ -43,6 +43,7 @@ from peripherals.st_spi import (
     StSpiTarget,
     check_rotation,
     rotate,
+    to_int16,
 )
 
 __all__ = [
@@ -173,11 +174,7 @@ class L3gd20(StSpiTarget):
             w = err.apply(t_ns, env.gyro_rad_s if rot is None else rotate(rot, env.gyro_rad_s),
                           self.ch.odr_mhz / 1000, env.board_temperature_c)
             lsb = SENSITIVITY_MDPS[(self.regs.values[0x23] >> 4) & 3] * 1e-3 * _DPS  # FS
-            # to_int16, inlined (760 samples per virtual second).
-            x, y, z = round(w[0] / lsb), round(w[1] / lsb), round(w[2] / lsb)
-            raw = (32767 if x > 32767 else (-32768 if x < -32768 else x),
-                   32767 if y > 32767 else (-32768 if y < -32768 else y),
-                   32767 if z > 32767 else (-32768 if z < -32768 else z))
+            raw = (to_int16(w[0] / lsb), to_int16(w[1] / lsb), to_int16(w[2] / lsb))
         self._last_raw = raw
         return raw
 

@@ -248,11 +248,7 @@ class Lsm303d(StSpiTarget):
                           2.0 * bw, env.board_temperature_c)
             afs = (ctrl2 >> 3) & 7  # CTRL2.AFS
             lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0
-            # to_int16, inlined (1600 samples per virtual second).
-            x, y, z = round(a[0] / lsb), round(a[1] / lsb), round(a[2] / lsb)
-            raw = (32767 if x > 32767 else (-32768 if x < -32768 else x),
-                   32767 if y > 32767 else (-32768 if y < -32768 else y),
-                   32767 if z > 32767 else (-32768 if z < -32768 else z))
+            raw = (to_int16(a[0] / lsb), to_int16(a[1] / lsb), to_int16(a[2] / lsb))
         self._last_accel = raw
         return raw
 

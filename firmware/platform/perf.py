@@ -77,14 +77,7 @@ class PerfCounter:
         if self._first_us < 0:
             self._first_us = now
         else:
-            v = now - self._last_us  # _sample() inlined: this runs on every driver cycle
-            self._n += 1
-            if v < self.min_us:
-                self.min_us = float(v)
-            if v > self.max_us:
-                self.max_us = float(v)
-            self._sum += v
-            self._sumsq += v * v
+            self._sample(now - self._last_us)
             self.total_us = now - self._first_us
         self._last_us = now
 
@@ -101,13 +94,7 @@ class PerfCounter:
         self._start_us = -1
         self.events += 1
         self.total_us += v
-        self._n += 1  # _sample() inlined
-        if v < self.min_us:
-            self.min_us = float(v)
-        if v > self.max_us:
-            self.max_us = float(v)
-        self._sum += v
-        self._sumsq += v * v
+        self._sample(v)
 
     def cancel(self) -> None:
         self._start_us = -1

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from board.kernel import NS_PER_MS, PRIO_HW, Event, Kernel
+from board.kernel import NS_PER_MS, PRIO_HW, Kernel
 from board.spi import SpiTarget
 from peripherals.errors import AxisErrors, ImuErrorModel
 from peripherals.faults import FaultState
@@ -152,8 +152,8 @@ class Mpu6000(SpiTarget):
         self._int_active = False
         #: End of the running INT pulse (-1: none, or a held latched level).
         self._pulse_end_ns = -1
-        self._drdy_entry: Event | None = None
-        self._ovf_entry: Event | None = None
+        self._drdy_entry: list | None = None
+        self._ovf_entry: list | None = None
         #: Pin drives for INT asserted and idle (0, 1, or None: released, open drain).
         self._on_drive: int | None = 0
         self._off_drive: int | None = 1
@@ -455,9 +455,10 @@ class Mpu6000(SpiTarget):
         self._pulse_end_ns = -1
         self._int_level()
 
-    def _assert_int(self) -> None:
+    def _assert_int(self, sync: bool = False) -> None:
         """Assert INT from a chip event (now): held when latched, else a 50 us pulse (a pulse
-        still running is extended)."""
+        still running is extended). ``sync``: the pin's listeners (the driver's EXTI handler)
+        run inside this event, as the data-ready interrupt does."""
         faults = self.faults
         if faults.drdy_stuck or faults.absent:
             return
@@ -469,19 +470,18 @@ class Mpu6000(SpiTarget):
             return
         self._int_active = True
         end = self._pulse_end_ns = self.kernel.now_ns + INT_PULSE_NS
-        # Not sync: the overflow event still re-arms after this (rare: a queued EXTI is fine).
         pin = self.drdy_pin
         if pin is not None:
-            pin.pulse(self._on_drive, self._off_drive, end)
+            pin.pulse(self._on_drive, self._off_drive, end, sync)
 
     def _schedule_int(self) -> None:
         """(Re)arm the kernel events that move the INT pin; none when nothing can be seen."""
         k = self.kernel
         if self._drdy_entry is not None:
-            Kernel.cancel(self._drdy_entry)
+            self._drdy_entry[3] = None
             self._drdy_entry = None
         if self._ovf_entry is not None:
-            Kernel.cancel(self._ovf_entry)
+            self._ovf_entry[3] = None
             self._ovf_entry = None
         if self.drdy_pin is None or not self._awake:
             return
@@ -499,24 +499,12 @@ class Mpu6000(SpiTarget):
                                          PRIO_HW, self._on_overflow, ())
 
     def _on_drdy(self) -> None:
-        """A sample is due: re-arm for the next one and pulse INT (:meth:`_assert_int`, inlined:
-        this is the 8 kHz path, and the two must stay alike). The driver's EXTI handler runs
-        inside this event (``sync``), at this time, in interrupt context."""
+        """A sample is due: re-arm for the next one and pulse INT. The driver's EXTI handler
+        runs inside this event (``sync``), at this time, in interrupt context; the overflow
+        event asserts INT unsynchronised, as it still re-arms after (a queued EXTI is fine)."""
         k = self.kernel
-        now = k.now_ns
-        self._drdy_entry = k.post(now + self._period, PRIO_HW, self._on_drdy, ())
-        faults = self.faults
-        if faults.drdy_stuck or faults.absent:
-            return
-        if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
-            if not self._int_on():
-                self._int_active = True
-                self._pulse_end_ns = -1
-                self._drive_pin(self._on_drive)
-            return
-        self._int_active = True
-        end = self._pulse_end_ns = now + INT_PULSE_NS
-        self.drdy_pin.pulse(self._on_drive, self._off_drive, end, True)  # type: ignore[union-attr]
+        self._drdy_entry = k.post(k.now_ns + self._period, PRIO_HW, self._on_drdy, ())
+        self._assert_int(sync=True)
 
     def _on_overflow(self) -> None:
         self._ovf_entry = None
