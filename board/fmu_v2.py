@@ -55,7 +55,7 @@ from board.board import Board
 from board.gpio import Gpio
 from board.i2c import I2cBus
 from board.spi import SpiBus
-from board.specs import FMU_V2, BoardSpecData, model_class
+from board.specs import FMU_V2, SENSOR_STAGES, BoardSpecData, model_class
 from board.uart import Uart, UartConfig
 from firmware.platform import Platform
 from firmware.shell.line_editor import LineEditor
@@ -414,7 +414,7 @@ class FmuV2Board(Board):
 
         params = self.system.params if self.system is not None else None
         started = {}
-        for d in self.spec.drivers("sensors"):
+        for d in self.spec.drivers(*SENSOR_STAGES):
             if d.command in self._excluded or d.device in self._excluded:
                 continue
             mod_name, _, cls_name = d.target.partition(":")

@@ -25,7 +25,7 @@ from typing import Any, Union
 
 __all__ = ["SpecError", "SpiDevice", "SpiBusSpec", "I2cDevice", "I2cBusSpec", "UartSpec",
            "AdcChannel", "PwmOutput", "CanSpec", "BoardSpecData", "DevicePlace", "DriverStart",
-           "FMU_V2", "IO_V2", "MODELS", "DRIVERS", "STAGES", "model_class"]
+           "FMU_V2", "IO_V2", "MODELS", "DRIVERS", "STAGES", "SENSOR_STAGES", "model_class"]
 
 _PIN = re.compile(r"^P[A-K]\d{1,2}$")
 
@@ -58,9 +58,13 @@ DRIVERS: dict[str, str] = {
     "mtd": "firmware.drivers.modules:MtdModule",
 }
 
-#: When a board starts a device's driver: ``"sensors"`` with the sensor drivers (rc.sensors, or
-#: ``firmware="sensors"``), ``"storage"`` first at boot, before the parameters load from it.
-STAGES = ("sensors", "storage")
+#: When a board starts a device's driver: ``"storage"`` first at boot, before the parameters
+#: load from it; ``"baro"`` and ``"sensors"`` with the sensor drivers (``firmware="sensors"``
+#: starts both in spec order; rc.sensors starts the barometers first, then the other sensors,
+#: as the FMUv2's script always has).
+STAGES = ("storage", "baro", "sensors")
+#: The stages of the sensor drivers.
+SENSOR_STAGES = ("baro", "sensors")
 
 
 def _is_target(name: str) -> bool:
@@ -100,7 +104,7 @@ class SpiDevice:
     driver_class: str = ""  # "package.module:Class" of that shell module (default DRIVERS)
     driver_args: tuple[str, ...] = ()  # start options, as in ``hmc5883 -X start``
     rotation: int | None = None  # PX4 mounting rotation handed to the driver (None: its own)
-    stage: str = "sensors"  # see STAGES
+    stage: str = "sensors"  # when the board starts the driver: see STAGES
 
 
 @dataclass(frozen=True)
@@ -323,9 +327,13 @@ class BoardSpecData:
 
     # -- devices and their drivers ---------------------------------------------------------
 
-    def drivers(self, stage: str | None = None) -> list[DriverStart]:
-        """The drivers this board starts, in start order (SPI buses, I2C buses, then the
-        UARTs' connector devices, each in spec order), optionally of one stage only."""
+    def drivers(self, *stages: str) -> list[DriverStart]:
+        """The drivers this board starts, in spec order (SPI buses, I2C buses, then the UARTs'
+        connector devices, each in spec order), of the given stages (none given: all)."""
+        for st in stages:
+            if st not in STAGES:
+                raise SpecError(f"board {self.name}: no driver stage {st!r} (stages: "
+                                f"{', '.join(STAGES)})")
         where = f"board {self.name}"
         out: list[DriverStart] = []
         entries: list[tuple[str, str, str, tuple[str, ...], str]] = []
@@ -338,7 +346,7 @@ class BoardSpecData:
         entries += [(u.role, u.driver, u.driver_class, u.driver_args, u.stage)
                     for u in self.uarts if u.external_model is not None]
         for name, drv, cls, args, st in entries:
-            if drv and (stage is None or st == stage):
+            if drv and (not stages or st in stages):
                 out.append(DriverStart(name, drv, _driver_target(where, name, drv, cls, st),
                                        args, st))
         return out
@@ -421,7 +429,8 @@ FMU_V2 = BoardSpecData(
                       driver="l3gd20"),
             SpiDevice("lsm303d", "lsm303d", cs="PC15", drdy=("PB4", "PB1"),
                       about="accel (INT1 PB4) + mag (INT2 PB1)", driver="lsm303d"),
-            SpiDevice("ms5611", "ms5611", cs="PD7", about="barometer", driver="ms5611"),
+            SpiDevice("ms5611", "ms5611", cs="PD7", about="barometer", driver="ms5611",
+                      stage="baro"),
         )),
         SpiBusSpec("SPI2", 2, 42_000_000, (
             SpiDevice("fram", "fm25v01", cs="PD10", about="16 KiB FRAM: parameters, dataman",

@@ -5,11 +5,12 @@ The files are plain text in this folder (``init.d/rcS``, ``init.d/rc.*``,
 finds them: :func:`airframes` reads the ``# @name`` headers (as PX4's airframe tooling does) so a
 tool or test can list what ``SYS_AUTOSTART`` may select, and :func:`boot` runs ``rcS``.
 
-One line is written by the board rather than by hand: ``@board_sensors`` (in ``rc.sensors``)
-becomes one ``DRIVER start [options]`` line per sensor device of the board's spec
-(:meth:`board.specs.BoardSpecData.drivers`), in the spec's order, when the shell reads the
-file (:func:`expand`). PX4 writes that list per board (``rc.board_sensors``); here the board's
-spec is the one place a device is put on a board, so a board variant starts its own drivers.
+Some lines are written by the board rather than by hand: ``@board_sensors STAGE`` (in
+``rc.sensors``) becomes one ``DRIVER start [options]`` line per device of that driver stage in
+the board's spec (:meth:`board.specs.BoardSpecData.drivers`: ``baro``, then ``sensors``), in
+the spec's order, when the shell reads the file (:func:`expand`). PX4 writes that list per
+board (``rc.board_sensors``); here the board's spec is the one place a device is put on a
+board, so a board variant starts its own drivers.
 """
 
 from __future__ import annotations
@@ -64,24 +65,28 @@ def boot(shell: Shell) -> int:
     return shell.run_file(RCS)
 
 
-def board_sensor_lines(board: BoardSpecData | None) -> list[str]:
-    """The nsh lines that start the sensor drivers of ``board`` (None: the FMUv2's spec)."""
+def board_sensor_lines(board: BoardSpecData | None, *stages: str) -> list[str]:
+    """The nsh lines that start the drivers of ``board`` (None: the FMUv2's spec) of the given
+    stages (none given: the sensor stages), in spec order."""
     if board is None:
         from board.specs import FMU_V2
 
         board = FMU_V2
-    return [d.line for d in board.drivers("sensors")]
+    from board.specs import SENSOR_STAGES
+
+    return [d.line for d in board.drivers(*(stages or SENSOR_STAGES))]
 
 
 def expand(text: str, board: BoardSpecData | None) -> str:
-    """A ROMFS file's text with each ``@board_sensors`` line replaced by
+    """A ROMFS file's text with each ``@board_sensors [STAGE]`` line replaced by
     :func:`board_sensor_lines` (other text unchanged)."""
     if BOARD_SENSORS not in text:
         return text
     out: list[str] = []
     for line in text.split("\n"):
-        if line.strip() == BOARD_SENSORS:
-            out.extend(board_sensor_lines(board))
+        words = line.split()
+        if words and words[0] == BOARD_SENSORS:
+            out.extend(board_sensor_lines(board, *words[1:]))
         else:
             out.append(line)
     return "\n".join(out)

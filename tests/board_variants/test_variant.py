@@ -107,3 +107,13 @@ def test_the_variant_boots_with_its_drivers_from_rc_sensors():
     assert "toybaro start" in board.ctl_shell("cat /etc/init.d/rc.sensors")[1]
     status, out = board.ctl_shell("toybaro status")
     assert status == 0 and "publishes sensor_baro[0]" in out, out
+
+
+def test_rc_sensors_of_the_fmu_v2_starts_what_the_hand_written_script_did():
+    """The FMUv2's rc.sensors, expanded from its spec, is the script it replaced: same
+    commands, same order (the barometer first), so the default flight is unchanged."""
+    text = romfs.expand((romfs.ROMFS_ROOT / "init.d" / "rc.sensors").read_text(), None)
+    starts = [line for line in text.splitlines() if line and not line.startswith("#")]
+    assert starts == ["ms5611 start", "mpu6000 start", "l3gd20 start", "lsm303d start",
+                      "hmc5883 start -X", "gps start -d /dev/ttyS3", "sensors start"]
+    assert text.splitlines()[7] == "l3gd20 start"  # line 8, as error messages name it
