@@ -56,7 +56,8 @@ def airframes(root: Path = ROMFS_ROOT) -> dict[int, Airframe]:
         head = {k: v.strip() for k, v in re.findall(r"^#\s*@(\w+)\s+(.*)$", f.read_text(),
                                                      re.MULTILINE)}
         out[int(m.group(1))] = Airframe(int(m.group(1)), f"/etc/init.d/airframes/{f.name}",
-                                        head.get("name", m.group(2)), head.get("type", ""))
+                                        str(head.get("name", m.group(2))),
+                                        head.get("type", ""))
     return out
 
 
