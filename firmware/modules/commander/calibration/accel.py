@@ -27,7 +27,6 @@ from firmware.modules.commander.calibration.common import (
     FAILED,
     INFO,
     RUNNING,
-    Routine,
     Say,
     SensorSet,
     assign_slots,
@@ -40,15 +39,12 @@ from firmware.modules.commander.calibration.orientation import (
     SIDE_GRAVITY,
     OrientationDetector,
 )
+from firmware.modules.commander.calibration.sides import ANNOUNCE, DETECT, SideBySide
 from firmware.modules.sensors.params import N_ACCEL_CAL
 
 __all__ = ["AccelCalibration", "fit_axis"]
 
-ANNOUNCE, DETECT, COLLECT = 0, 1, 2
-#: no side found for this long: PX4 gives up ("timeout: no motion")
-DETECT_TIMEOUT_US: Final = 90_000_000
-#: orientation failures in a row (invalid side, a side done before) before giving up
-MAX_FAILURES: Final = 4
+COLLECT: Final = 2
 Vec3 = tuple[float, float, float]
 
 
@@ -65,7 +61,7 @@ def fit_axis(true: list[float], raw: list[float]) -> tuple[float, float]:
     return mr - gain * mt, 1.0 / gain
 
 
-class AccelCalibration(Routine):
+class AccelCalibration(SideBySide):
     KIND = "accel"
     #: samples of the first accelerometer per side
     SAMPLES = 300
@@ -74,11 +70,7 @@ class AccelCalibration(Routine):
         super().__init__(orb, params, say)
         self.accels = SensorSet(orb, "sensor_accel")
         self.detector = OrientationDetector()
-        self.state = ANNOUNCE
-        self.done = [False] * 6
-        self.failures = 0
         self.side = -1
-        self.detect_since_us = 0
         n = len(self.accels)
         self.sums: list[list[float]] = [[0.0, 0.0, 0.0, 0.0] for _ in range(n)]
         self.refs: list[list[Vec3 | None]] = [[None] * 6 for _ in range(n)]
@@ -97,23 +89,8 @@ class AccelCalibration(Routine):
             return self._detect(now_us)
         return self._collect()
 
-    def _announce(self, now_us: int) -> int:
-        if all(self.done):
-            return self._result()
-        if self.failures > MAX_FAILURES:
-            self.say(CRITICAL, msg.failed("timeout: no motion"))
-            return FAILED
-        self.say(INFO, msg.pending(self.done))
-        self.say(INFO, msg.HOLD_STILL)
-        self.detector.reset()
-        self.accels.skip()
-        self.detect_since_us = now_us
-        self.state = DETECT
-        return RUNNING
-
     def _detect(self, now_us: int) -> int:
-        if now_us - self.detect_since_us > DETECT_TIMEOUT_US:
-            self.say(CRITICAL, msg.failed("timeout: no motion"))
+        if self._detect_timed_out(now_us):
             return FAILED
         for s in self.accels.drain()[0]:
             event = self.detector.feed(int(s.timestamp_sample),

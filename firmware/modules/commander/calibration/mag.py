@@ -27,7 +27,6 @@ from firmware.modules.commander.calibration.common import (
     FAILED,
     INFO,
     RUNNING,
-    Routine,
     Say,
     SensorSet,
     assign_slots,
@@ -39,20 +38,19 @@ from firmware.modules.commander.calibration.orientation import (
     REST,
     OrientationDetector,
 )
+from firmware.modules.commander.calibration.sides import ANNOUNCE, DETECT, SideBySide
 from firmware.modules.sensors.params import N_MAG_CAL
 
 __all__ = ["MagCalibration", "sphere_fit"]
 
-ANNOUNCE, DETECT, WAIT_ROTATION, COLLECT = 0, 1, 2, 3
+WAIT_ROTATION, COLLECT = 2, 3
 ROTATION_START_RAD: Final = 0.5
 ROTATION_WAIT_US: Final = 30_000_000
 SIDE_TIMEOUT_US: Final = 20_000_000
-DETECT_TIMEOUT_US: Final = 90_000_000
 #: a full turn about some axis since the side was detected (less 5 % for the gyro's errors)
 FULL_TURN_RAD: Final = 0.95 * 2.0 * math.pi
 #: PX4's minimum distance between points: 5.4 r / sqrt(points) / 3 for a field of radius r
 NOMINAL_FIELD_GA: Final = 0.5
-MAX_FAILURES: Final = 4
 
 
 def sphere_fit(points: list[tuple[float, float, float]]) -> tuple[float, float, float, float]:
@@ -84,7 +82,7 @@ def sphere_fit(points: list[tuple[float, float, float]]) -> tuple[float, float, 
     return cx, cy, cz, math.sqrt(r2) if r2 > 0.0 else math.nan
 
 
-class MagCalibration(Routine):
+class MagCalibration(SideBySide):
     KIND = "mag"
     #: PX4: 240 points over all sides
     POINTS_PER_SIDE = 40
@@ -101,10 +99,7 @@ class MagCalibration(Routine):
         self.points: list[list[tuple[float, float, float]]] = [[] for _ in range(len(self.mags))]
         n_total = self.POINTS_PER_SIDE * self.n_sides
         self.min_dist = 5.4 * NOMINAL_FIELD_GA / math.sqrt(n_total) / 3.0
-        self.state = ANNOUNCE
         self.side = -1
-        self.failures = 0
-        self.since_us = 0
         self.side_points = 0
         self.gyro_int = [0.0, 0.0, 0.0]
         self.gyro_t = -1
@@ -127,23 +122,8 @@ class MagCalibration(Routine):
             return self._wait_rotation(now_us)
         return self._collect(now_us)
 
-    def _announce(self, now_us: int) -> int:
-        if all(self.done):
-            return self._result()
-        if self.failures > MAX_FAILURES:
-            self.say(CRITICAL, msg.failed("timeout: no motion"))
-            return FAILED
-        self.say(INFO, msg.pending(self.done))
-        self.say(INFO, msg.HOLD_STILL)
-        self.detector.reset()
-        self.accels.skip()
-        self.since_us = now_us
-        self.state = DETECT
-        return RUNNING
-
     def _detect(self, now_us: int) -> int:
-        if now_us - self.since_us > DETECT_TIMEOUT_US:
-            self.say(CRITICAL, msg.failed("timeout: no motion"))
+        if self._detect_timed_out(now_us):
             return FAILED
         rot = self.board_rotation()
         for s in self.accels.drain()[0]:
