@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from board.wiring import WORLD, Wire
+from hil.binding_life import DeviceBinding
 from hil.can_interface_host import CanHost, Endpoint
 from hil.can_interface_wire import KIND_ECHO, KIND_FRAME, WireFrame
 
@@ -38,7 +39,7 @@ def parse_can_spec(spec: str) -> tuple[str, str]:
     return iface, channel
 
 
-class BoundBus(Endpoint):
+class BoundBus(DeviceBinding, Endpoint):
     """A python-can bus attached to a :class:`~hil.can_interface_host.CanHost`."""
 
     def __init__(self, spec: str, bitrate: int, bus: Any = None,
@@ -71,7 +72,7 @@ class BoundBus(Endpoint):
                                          msg.is_remote_frame, data))
                 self.frames_in += 1
         except (can.CanError, OSError, ValueError) as exc:
-            self._fail(host, exc)
+            self._fail(exc)
 
     def deliver(self, frame: WireFrame) -> None:
         if frame.kind == KIND_ECHO or self.closed:
@@ -86,26 +87,17 @@ class BoundBus(Endpoint):
             self.frames_out += 1
         except can.CanOperationError as exc:
             if "closed" in str(exc) or "shut" in str(exc):
-                self._fail(None, exc)
+                self._fail(exc)
             else:
                 self.send_failures += 1  # TX buffer full, bus-off, no ACK: drop, go on
         except (can.CanError, OSError, ValueError) as exc:
-            self._fail(None, exc)
+            self._fail(exc)
 
-    def _fail(self, host: CanHost | None, exc: BaseException) -> None:
-        if self.error is None:
-            self.error = f"{type(exc).__name__}: {exc}"
-            self.log(f"hil: CAN binding {self.spec} failed ({self.error}); closed, the "
-                          f"emulator keeps running without it")
-        self.close()
+    def describe(self) -> str:
+        return f"CAN binding {self.spec}"
 
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            try:
-                self.bus.shutdown()
-            except Exception:  # noqa: BLE001 - a dying adapter may fail in any way
-                pass
+    def _close_device(self) -> None:
+        self.bus.shutdown()
 
 
 def add_can_hosts(cfg: Any, hub: Any, devices: dict[str, Any], buses: tuple[str, ...]

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from board.wiring import WORLD, Wire
+from hil.binding_life import DeviceBinding
 
 __all__ = ["CONNECTORS", "HOST_BUFFER_BYTES", "UartBinding", "add_uart_bindings"]
 
@@ -53,7 +54,7 @@ CONNECTORS: dict[str, Connector] = {
 }
 
 
-class UartBinding:
+class UartBinding(DeviceBinding):
     """A host device owning ``port`` (the world's end of the wire to the board's UART)."""
 
     def __init__(self, name: str, url: str, port: str, config: tuple, quantum_ns: int,
@@ -147,25 +148,16 @@ class UartBinding:
         except (serial.SerialException, OSError, ValueError) as exc:
             self._fail(exc)
 
-    def _fail(self, exc: BaseException) -> None:
-        if self.error is None:
-            self.error = f"{type(exc).__name__}: {exc}"
-            self.log(f"hil: UART binding {self.name}={self.url} failed ({self.error}); closed, "
-                     f"the emulator keeps running without it")
-        self.close()
+    def describe(self) -> str:
+        return f"UART binding {self.name}={self.url}"
 
     def stats(self) -> dict[str, Any]:
         return {"url": self.url, "closed": self.closed, "error": self.error,
                 "bytes_in": self.bytes_in, "bytes_out": self.bytes_out, "dropped": self.dropped,
                 "baud": self.config[0], "baud_changes": self.baud_changes}
 
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            try:
-                self.serial.close()
-            except Exception:  # noqa: BLE001 - a vanished device may fail in any way
-                pass
+    def _close_device(self) -> None:
+        self.serial.close()
 
 
 def add_uart_bindings(cfg: Any, hub: Any, devices: dict[str, Any], wiring: list[Wire],
