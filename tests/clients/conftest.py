@@ -5,12 +5,13 @@ it (``.venv/bin/hil fly --speed S --out TMPDIR --seed 1``), waited for until it 
 "Ctrl-C to stop" line, and stopped at teardown: SIGINT (the Ctrl-C the banner asks for), then
 SIGKILL of its whole process group (its board processes included), so no process is left.
 
-The emulator is paced to the wall clock at ``--speed`` (``HIL_CLIENTS_SPEED``, default 1.5: the
-clients see a vehicle that lives 1.5 virtual seconds per wall second, which the pure modules
-keep up with on two cores, and the suite spends a third less time waiting for flights; real
-clients must cope with a vehicle whose clock is not theirs anyway); on a loaded machine it may
-run slower than that, so every wait here is in wall-clock seconds and generous (scaled by
-``HIL_CLIENTS_TIMEOUT_SCALE``, default 1).
+The emulator is paced to the wall clock at ``--speed`` (``HIL_CLIENTS_SPEED``, default 2.5: the
+clients see a vehicle that lives 2.5 virtual seconds per wall second, and the suite spends less
+time waiting for flights: the client tests' paced pass took 108 s at 2.5 against 127 s at 1.5
+on two cores; real clients must cope with a vehicle whose clock is not theirs anyway, and the
+heartbeat keepalive of hil/mavlink_bridge.py covers a run that falls behind); on a loaded or
+slower machine it runs as fast as it can, so every wait here is in wall-clock seconds and
+generous (scaled by ``HIL_CLIENTS_TIMEOUT_SCALE``, default 1).
 
 Known emulator gaps that a test works around are reported with :func:`gap`: by default the
 test goes on (or ends as xfail with the exact gap as reason); with ``HIL_CLIENTS_STRICT=1`` a
@@ -40,7 +41,7 @@ VEHICLE_API_SOCKET = 14580   # vehicle's socket of the API link
 GCS_PORT = 14550             # the vehicle sends GCS traffic here (QGC, MAVProxy, mavutil)
 API_PORT = 14540             # the vehicle sends API traffic here (MAVSDK)
 
-SPEED = float(os.environ.get("HIL_CLIENTS_SPEED", "1.5"))
+SPEED = float(os.environ.get("HIL_CLIENTS_SPEED", "2.5"))
 TIMEOUT_SCALE = float(os.environ.get("HIL_CLIENTS_TIMEOUT_SCALE", "1.0"))
 STRICT = os.environ.get("HIL_CLIENTS_STRICT", "") not in ("", "0")
 
