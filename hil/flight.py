@@ -86,7 +86,7 @@ def tier_line() -> str:
     state = native_status()[0]
     why = "stale: the sources changed since it was built" if state == "stale" else "not built"
     return (f"pure Python (compiled tier {why}; `make native` or `hil native build` compiles "
-            "the boards in a few minutes, then runs go ~1.2-1.3x faster)")
+            "its fast modules in a few minutes, then runs go ~1.3x faster)")
 
 
 def _dist_to_segment(p: tuple[float, float], a: tuple[float, float],
@@ -330,7 +330,7 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
               f"esc.Status sent {[n['status_tx'] for n in nodes]}, CAN error frames "
               f"{summary['can1']['error_frames']}")
     tier = ("compiled tier" if summary["compiled"]
-            else "pure Python; `make native` compiles the boards, ~1.2-1.3x faster")
+            else "pure Python; `make native` compiles the fast modules, ~1.3x faster")
     cpus = summary.get("cpus") or "CPUs not pinned"
     print(f"  real-time factor {summary['rtf']:.1f} ({summary['wall_s']:.0f} s of wall time, "
           f"{tier}; {cpus})")
