@@ -12,7 +12,7 @@ from typing import Iterator
 
 from firmware.platform.params import ParamDef
 
-__all__ = ["PARAM_DEFS", "terminates"]
+__all__ = ["PARAM_DEFS", "ctrl_c_reaches_child", "terminates"]
 
 #: A few parameters of both types, with a range, a unit and an enumeration: enough to reach
 #: every path of the parameter store without booting a board.
@@ -42,3 +42,14 @@ def terminates(seconds: float = 2.0) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
+
+
+def ctrl_c_reaches_child() -> None:
+    """``preexec_fn`` for a child that a test stops with SIGINT (the user's Ctrl-C).
+
+    ``make test`` run as a background job of a non-interactive shell (CI scripts, ``cmd &``)
+    starts with SIGINT ignored; pytest and its xdist workers inherit that, and so would the
+    child, which then never stops on SIGINT (Python installs its KeyboardInterrupt handler only
+    where SIGINT was not ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})

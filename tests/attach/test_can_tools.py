@@ -25,6 +25,8 @@ import pytest
 from hil.can_interface_host import TcpEndpoint
 from dronecan.transport import Transfer
 
+from tests.helpers import ctrl_c_reaches_child
+
 from .conftest import FMU_NODE_ID, FMU_NODE_STATUS_ID
 
 
@@ -51,7 +53,8 @@ def test_can_logger_records_the_fmu_node_status(can_rig, announced, tmp_path):
     path = tmp_path / "can1.log"
     proc = subprocess.Popen([sys.executable, "-m", "can.logger", "-i", "hil", "-c", "CAN1",
                              "-f", str(path)], env=announced, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=ctrl_c_reaches_child)  # noqa: PLW1509
     try:
         can_rig.run_until(lambda: _tcp_clients(can_rig) or proc.poll() is not None, 60,
                           "can.logger to connect")
@@ -87,7 +90,8 @@ def test_can_player_replays_a_recording_that_the_fmu_sees(can_rig, announced, tm
     before = can_rig.uavcan()["node_status_rx"]
     proc = subprocess.Popen([sys.executable, "-m", "can.player", "-i", "hil", "-c", "CAN1",
                              str(recording)], env=announced, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=ctrl_c_reaches_child)  # noqa: PLW1509
     try:
         can_rig.run_until(lambda: proc.poll() is not None, 60, "can.player to finish")
         can_rig.run_s(0.1)  # the last frames cross into the board
@@ -108,7 +112,8 @@ def test_can_viewer_starts_and_shows_the_fmu_frames(can_rig, announced):
     env = {**announced, "TERM": "xterm", "LINES": "40", "COLUMNS": "120"}
     proc = subprocess.Popen([sys.executable, "-m", "can.viewer", "-i", "hil", "-c", "CAN1"],
                             env=env, stdin=slave, stdout=slave, stderr=slave,
-                            start_new_session=True)
+                            start_new_session=True,
+                            preexec_fn=ctrl_c_reaches_child)  # noqa: PLW1509
     os.close(slave)
     screen = bytearray()
     try:

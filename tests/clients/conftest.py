@@ -34,6 +34,7 @@ from typing import Any
 import pytest
 
 from hil.shell_client import run_command, runtime_dir
+from tests.helpers import ctrl_c_reaches_child
 
 #: UDP ports ``hil fly`` binds (host side of the GCS and API links) and the client ports
 VEHICLE_GCS_SOCKET = 18570   # vehicle's socket of the GCS link: send here to reach the FMU
@@ -98,12 +99,6 @@ def hil_fly_has_flag(flag: str) -> bool:
     return flag in out
 
 
-def _default_sigint() -> None:
-    # A background job of a non-interactive shell starts with SIGINT ignored, and Python then
-    # installs no KeyboardInterrupt handler: give the emulator the Ctrl-C a user would.
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 class HilFly:
     """One ``hil fly`` process."""
 
@@ -147,7 +142,7 @@ class HilFly:
         self.proc = subprocess.Popen(cmd, cwd=str(ROOT), stdin=subprocess.DEVNULL,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      text=True, bufsize=1, start_new_session=True,
-                                     preexec_fn=_default_sigint)  # noqa: PLW1509 (before the reader thread)
+                                     preexec_fn=ctrl_c_reaches_child)  # noqa: PLW1509 (before the reader thread)
         self.starts += 1
         ready = threading.Event()
 
