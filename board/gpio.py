@@ -39,7 +39,7 @@ import re
 from collections.abc import Callable
 from typing import Any, Final
 
-from board.kernel import PRIO_HW, PRIO_ISR, Kernel, call_in_isr
+from board.kernel import PRIO_HW, PRIO_ISR, Event, Kernel, call_in_isr
 
 __all__ = ["ExtiLine", "Gpio", "Pin", "PinHandler", "PinListener", "call_in_isr"]
 
@@ -101,7 +101,7 @@ class Pin:
         self._ret_t = -1
         self._ret_drive: int | None = None
         #: A return nobody could see turned into a kernel event because something can now.
-        self._ret_entry: list | None = None
+        self._ret_entry: Event | None = None
 
     @property
     def level(self) -> int:
@@ -137,9 +137,10 @@ class Pin:
         entry = self._ret_entry
         if entry is not None:
             self._ret_entry = None
-            entry[3] = None
-            if entry[0] <= t_ns:  # due already (inside a bus wait): it happens first
-                self._apply(entry[4][0], entry[0])
+            Kernel.cancel(entry)
+            due = Kernel.due_ns(entry)
+            if due <= t_ns:  # due already (inside a bus wait): it happens first
+                self._apply(Kernel.event_args(entry)[0], due)
 
     def _materialize(self) -> None:
         """Something may now observe a lazy return: make a future one a kernel event."""

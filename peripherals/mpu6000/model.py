@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from board.kernel import NS_PER_MS, PRIO_HW, Kernel
+from board.kernel import NS_PER_MS, PRIO_HW, Event, Kernel
 from board.spi import SpiTarget
 from peripherals.errors import AxisErrors, ImuErrorModel
 from peripherals.faults import FaultState
@@ -152,8 +152,8 @@ class Mpu6000(SpiTarget):
         self._int_active = False
         #: End of the running INT pulse (-1: none, or a held latched level).
         self._pulse_end_ns = -1
-        self._drdy_entry: list | None = None
-        self._ovf_entry: list | None = None
+        self._drdy_entry: Event | None = None
+        self._ovf_entry: Event | None = None
         #: Pin drives for INT asserted and idle (0, 1, or None: released, open drain).
         self._on_drive: int | None = 0
         self._off_drive: int | None = 1
@@ -478,10 +478,10 @@ class Mpu6000(SpiTarget):
         """(Re)arm the kernel events that move the INT pin; none when nothing can be seen."""
         k = self.kernel
         if self._drdy_entry is not None:
-            self._drdy_entry[3] = None
+            Kernel.cancel(self._drdy_entry)
             self._drdy_entry = None
         if self._ovf_entry is not None:
-            self._ovf_entry[3] = None
+            Kernel.cancel(self._ovf_entry)
             self._ovf_entry = None
         if self.drdy_pin is None or not self._awake:
             return
