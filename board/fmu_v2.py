@@ -52,6 +52,7 @@ from typing import Any
 
 from board.adc import Adc
 from board.board import Board
+from board.fmu_can import FmuCanSide
 from board.gpio import Gpio
 from board.i2c import I2cBus
 from board.spi import SpiBus
@@ -83,7 +84,7 @@ _SPI_CLOCK = {"mpu6000": 1_000_000, "l3gd20": 11_000_000, "lsm303d": 11_000_000,
               "ms5611": 20_000_000, "fm25v01": 20_000_000}
 
 
-class FmuV2Board(Board):
+class FmuV2Board(FmuCanSide, Board):
     """The FMU: STM32F427 with the FMUv2 sensor set."""
 
     def __init__(self, name: str = "fmu", seed: int = 0, fram_path: str | None = None,
@@ -202,63 +203,6 @@ class FmuV2Board(Board):
             model = cls(k, env, self._rng(u.role), name=u.role, baud=self._gps_baud, **extra)
             UartWire(self.uarts[u.name], model.uart)
             self.devices[u.role] = model
-
-    #: CAN bit rate of the FMU's buses (PX4's UAVCAN_BITRATE default)
-    CAN_BITRATE = 1_000_000
-
-    @property
-    def can(self) -> dict[str, Any]:
-        """The CAN buses by name (``CAN1``, ``CAN2``), built on first use."""
-        if self._can is None:
-            self._build_can()
-        return self._can  # type: ignore[return-value]
-
-    def _build_can(self) -> None:
-        from board.can import CanBus, CanController
-
-        self._can = {}
-        for c in self.spec.can:
-            bus = CanBus(self.kernel, c.name, self.CAN_BITRATE)
-            self._can[c.name] = bus
-            # bxCAN after reset: sleep mode, off the bus until the driver initialises it;
-            # automatic bus-off management (ABOM) as libuavcan's STM32 driver sets it
-            self.can_ctrl[c.name] = CanController(bus, f"{self.name}.{c.name}", enabled=False,
-                                                  auto_recovery=True)
-        for spec in self._uavcan_nodes:
-            self.can_nodes.append(self._can_node(spec))
-
-    def _can_node(self, spec: int | str) -> Any:
-        """One DroneCAN node on CAN1 from its ``uavcan_nodes`` entry (see the module doc)."""
-        bus = self._can["CAN1"]  # type: ignore[index]
-        if isinstance(spec, int):
-            from peripherals.uavcan_node import UavcanNode
-
-            return UavcanNode(self.kernel, bus, spec, name=f"uavcan_node{spec}", seed=self.seed)
-        from peripherals.dronecan.spec import parse_node_spec
-
-        try:
-            kind, node_id = parse_node_spec(spec)
-        except ValueError as exc:
-            raise ValueError(f"uavcan_nodes: {exc}") from None
-        nid = str(spec).partition("@")[2]
-        esc = kind[3:] if kind.startswith("esc") else ""
-        name = f"can_{kind}{nid and '@' + nid}"
-        if esc:
-            from peripherals.dronecan.esc import EscNode
-
-            # the motor is in the world: a pulse train equivalent to the command, on can_escN
-            return EscNode(self.kernel, bus, int(esc) - 1, node_id, name=name, seed=self.seed,
-                           rng=self._rng(name), output=self.expose_output(f"can_{kind}", "pwm"),
-                           supply_v=lambda: self._power_v)
-        if kind == "gnss":
-            from peripherals.dronecan.gnss import GnssNode
-
-            return GnssNode(self.kernel, bus, self.env, self._rng(name), node_id, name=name,
-                            seed=self.seed)
-        from peripherals.dronecan.mag import MagNode
-
-        return MagNode(self.kernel, bus, self.env, self._rng(name), node_id, name=name,
-                       seed=self.seed)
 
     def _expose_ports(self) -> None:
         for u in self.spec.uarts:
@@ -536,44 +480,6 @@ class FmuV2Board(Board):
             self.devices[name].set_power(bool(on))
         self.sensor_rail_on = bool(on)
         return names
-
-    def ctl_can_fault(self, bus: str, short: bool = False, bit_error_rate: float = 0.0) -> None:
-        """Make a CAN bus's wire faulty: CAN_H shorted to CAN_L (``short``) and/or a bit-error
-        rate (seeded by the board seed); both off heals it (:meth:`CanBus.set_wire_fault`)."""
-        self._bus("can", bus).set_wire_fault(bool(short), float(bit_error_rate),
-                                             seed=f"{self.seed}")
-
-    def ctl_can_node_silent(self, node: str, silent: bool = True) -> None:
-        """A DroneCAN node on CAN1 (by name, ``can_gnss``, or node ID as text) stops talking
-        (off the bus: no frames, no ACKs) or comes back: a hung node MCU or a cut stub."""
-        for n in self.can_nodes:
-            if node in (n.name, str(n.node_id)):
-                n.set_silent(bool(silent))
-                return
-        raise ValueError(f"no CAN node {node!r} (have {[n.name for n in self.can_nodes]})")
-
-    def ctl_can_esc_errors(self, node: str, errors_per_s: float) -> None:
-        """A DroneCAN ESC node on CAN1 (by name or node ID as text) counts errors at this rate
-        in its esc.Status (0: healthy again): :meth:`EscNode.set_error_rate`."""
-        for n in self.can_nodes:
-            if node in (n.name, str(n.node_id)) and hasattr(n, "set_error_rate"):
-                n.set_error_rate(float(errors_per_s))
-                return
-        raise ValueError(f"no CAN ESC node {node!r} (have "
-                         f"{[n.name for n in self.can_nodes if hasattr(n, 'set_error_rate')]})")
-
-    def ctl_can_stats(self, bus: str) -> dict[str, Any]:
-        """The FMU controller's error state and counters on ``bus``, the bus's, and every
-        UAVCAN node plugged into it."""
-        b = self._bus("can", bus)
-        c = self.can_ctrl[bus]
-        return {"state": c.state, "tec": c.tec, "rec": c.rec, "enabled": c.enabled,
-                "bus_off_count": c.bus_off_count, "tx_errors": c.tx_errors,
-                "tx_frames": c.tx_frames, "rx_frames": c.rx_frames, "frames": b.frames,
-                "error_frames": b.error_frames, "wire_fault": b.wire_fault,
-                "nodes": {(n.node_id or n.name): n.stats() for n in self.can_nodes
-                          if n.ctrl.bus is b},
-                "host": self.can_host[bus].stats() if bus in self.can_host else None}
 
     def ctl_dmesg(self) -> list[tuple[int, int, str, str]]:
         return list(self.platform.dmesg)
