@@ -42,8 +42,8 @@ PACKAGES = ("board", "peripherals", "firmware", "ioproc")
 
 #: The fast modules: the only ones mypyc compiles, chosen by profile and paired measurement
 #: (docs/architecture.md, "The compiled tier"). Per-file self time of the pure default flight
-#: under cProfile ranked them; compiling these 49 gives about 85-90 % of what compiling all 154
-#: board modules gave (FMU CPU per virtual second, same trace: pure 225 ms, these 176 ms, all
+#: under cProfile ranked them; compiling the first 49 gave about 85-90 % of what compiling all 154
+#: board modules gave (FMU CPU per virtual second, same trace: pure 225 ms, those 176 ms, all
 #: 168 ms; the top 21 alone 194 ms) at a third of the build time. Five more since: the sensors
 #: module's VehicleAngularVelocity, VehicleIMU and VehicleAcceleration and the RateControl
 #: library with its Vector3, split out of two fast modules into PX4's classes and run on the
