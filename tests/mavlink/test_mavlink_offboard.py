@@ -152,8 +152,8 @@ def test_offboard_square_velocity_and_loss(hil_vehicle):
     accepted; a square of four 5 m position setpoints at 4 m is flown corner by corner (each
     reached within 1 m); 1 m/s north in velocity setpoints moves the vehicle north at about
     that speed; an attitude setpoint (heading east) is flown, then body rates (0.5 rad/s yaw)
-    reach the rate controller unchanged; when the stream stops, after COM_OF_LOSS_T (1 s) the commander says so and
-    flies COM_OBL_RC_ACT's mode (0: Position, RC being there)."""
+    reach the rate controller unchanged; when the stream stops, after COM_OF_LOSS_T (1 s) the
+    commander says so and flies COM_OBL_RC_ACT's mode (0: Position, RC being there)."""
     v = hil_vehicle
     gcs = v.gcs
     v.wait_for("home_set", within=40.0, step=0.2)
