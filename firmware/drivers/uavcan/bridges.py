@@ -44,13 +44,18 @@ class GnssBridge:
         self._pubs: dict[int, Any] = {}
         self._msgs: dict[int, Any] = {}
         self.fixes = 0
+        self.dropped = 0
 
-    def _advertise(self) -> Any:
+    def _advertise(self, node_id: int) -> Any:
+        """A free ``sensor_gps`` instance from the first the serial GPS leaves, else None: the
+        node's fixes are dropped, said once (PX4's bridges run out of channels the same way)."""
         orb = self.platform.orb
         for i in range(self._first_instance(), ORB_MULTI_MAX_INSTANCES):
             if not orb.exists("sensor_gps", i):
                 return orb.advertise("sensor_gps", i)
-        return orb.advertise_multi("sensor_gps")  # all taken: says so
+        self.platform.warn("uavcan", f"GNSS node {node_id}: no sensor_gps instance left, "
+                                     "its fixes are dropped")
+        return None
 
     def on_fix2(self, node_id: int, f: Any, now_us: int) -> None:
         orb = self.platform.orb
@@ -96,9 +101,12 @@ class GnssBridge:
         std = int(f.gnss_time_standard)
         msg.time_utc_usec = utc_us if std == GNSS_TIME_STANDARD_UTC and utc_us else 0
         msg.timestamp_time_relative = 0
-        pub = self._pubs.get(node_id)
+        if node_id not in self._pubs:
+            self._pubs[node_id] = self._advertise(node_id)
+        pub = self._pubs[node_id]
         if pub is None:
-            pub = self._pubs[node_id] = self._advertise()
+            self.dropped += 1
+            return
         pub.publish(msg)
         self.fixes += 1
 
@@ -117,6 +125,7 @@ class MagBridge:
         self._pubs: dict[tuple[int, int], Any] = {}
         self._msg = platform.orb.new("sensor_mag")
         self.samples = 0
+        self.dropped = 0
 
     def on_mag2(self, node_id: int, m: Any, now_us: int) -> None:
         key = (node_id, int(m.sensor_id))
@@ -131,8 +140,16 @@ class MagBridge:
         msg.temperature = math.nan
         msg.error_count = 0
         msg.is_external = True
-        pub = self._pubs.get(key)
+        if key not in self._pubs:
+            try:
+                self._pubs[key] = self.platform.orb.advertise_multi("sensor_mag")
+            except RuntimeError:  # all instances in use: PX4's bridge is out of channels
+                self._pubs[key] = None
+                self.platform.warn("uavcan", f"compass node {node_id} sensor {key[1]}: no "
+                                             "sensor_mag instance left, its fields are dropped")
+        pub = self._pubs[key]
         if pub is None:
-            pub = self._pubs[key] = self.platform.orb.advertise_multi("sensor_mag")
+            self.dropped += 1
+            return
         pub.publish(msg)
         self.samples += 1
