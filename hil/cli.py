@@ -12,10 +12,42 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return main(as_json=args.json, only=args.only)
 
 
+def _airframe_id(args: argparse.Namespace) -> int | None:
+    """``--airframe NAME|ID`` as its SYS_AUTOSTART id; None (after one line on stderr) when
+    nothing is called that."""
+    from hil.airframes import resolve
+
+    try:
+        return resolve(args.airframe).id
+    except ValueError as exc:
+        print(f"hil {args.command}: {exc}", file=sys.stderr)
+        return None
+
+
+def _cmd_airframes(args: argparse.Namespace) -> int:
+    import json
+
+    from hil.airframes import all_airframes
+
+    frames = all_airframes()
+    if args.json:
+        print(json.dumps([f.as_json() for f in frames], indent=1))
+        return 0
+    print(f"{'id':>5}  {'name':<16} {'class':<12} {'world':<10} title")
+    for f in frames:
+        print(f"{f.id:>5}  {f.name:<16} {f.vehicle_class:<12} {f.host.world_model:<10} {f.title}")
+    print("fly one: hil run --airframe NAME|ID")
+    return 0
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from hil.flight import FlightConfig, main
     from hil.fly import honour_sigint
 
+    airframe = _airframe_id(args)
+    if airframe is None:
+        return 2
+    args.airframe = airframe
     honour_sigint()  # stop on SIGINT even when started in the background by a script
     cfg = FlightConfig(seed=args.seed, out_dir=args.out, airframe=args.airframe,
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
@@ -43,6 +75,10 @@ def _cmd_shell(args: argparse.Namespace) -> int:
 def _cmd_fly(args: argparse.Namespace) -> int:
     from hil.fly import main
 
+    airframe = _airframe_id(args)
+    if airframe is None:
+        return 2
+    args.airframe = airframe
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
                 airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram,
                 fixed_utc=args.fixed_utc, can=args.can, uart=args.uart, param=args.param,
@@ -170,7 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quantum-us", type=float, default=500.0,
                    help="lockstep quantum in microseconds (default 500, hil.system)")
     p.add_argument("--out", default="out", help="output folder: log, plot, FRAM, SD card")
-    p.add_argument("--airframe", type=int, default=4011, help="SYS_AUTOSTART (default 4011, F450)")
+    p.add_argument("--airframe", default="4011", metavar="NAME|ID",
+                   help="airframe by SYS_AUTOSTART id or name (default 4011, the F450; "
+                        "hil airframes lists them)")
     p.add_argument("--one-process", action="store_true",
                    help="run both boards in this process (debugging)")
     p.add_argument("--no-pipeline", action="store_true",
@@ -191,7 +229,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=None, help="virtual seconds (default: until Ctrl-C)")
     p.add_argument("--out", default="out", help="output folder: log, FRAM, SD card")
-    p.add_argument("--airframe", type=int, default=4011)
+    p.add_argument("--airframe", default="4011", metavar="NAME|ID",
+                   help="airframe by SYS_AUTOSTART id or name (hil airframes lists them)")
     p.add_argument("--keep-safety", action="store_true",
                    help="do not press the safety switch at boot")
     p.add_argument("--keep-fram", action="store_true",
@@ -212,6 +251,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--param", action="append", default=[], metavar="NAME=V",
                    help="parameter override at boot, e.g. UAVCAN_ENABLE=1")
     p.set_defaults(func=_cmd_fly)
+
+    p = sub.add_parser("airframes", help="list the airframes hil run --airframe flies")
+    p.add_argument("--json", action="store_true",
+                   help="a JSON list of objects: id (SYS_AUTOSTART), name, class, ...")
+    p.set_defaults(func=_cmd_airframes)
 
     p = sub.add_parser("bench", help="measure the speed figures")
     p.add_argument("--json", action="store_true", help="print one JSON object, one key per figure")
@@ -298,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         args = parser.parse_args(["run", *(argv or [])])
-    if argv is None and args.command != "native":
+    if argv is None and args.command not in ("native", "airframes"):
         # The `hil` command (not a test calling main([...])) runs the compiled tier (hil native
         # build) when it is there and matches the sources; this must come before anything
         # imports a board package. HIL_PURE=1 keeps the sources.

@@ -24,7 +24,10 @@ from pathlib import Path
 from typing import Any
 
 from hil.accuracy import TruthSample, estimator_accuracy
+from hil.airframes import resolve as airframe_info
+from hil.flight_checks import fixed_wing_checks
 from hil.gcs import GcsClient
+from hil.missions import M_PER_DEG_LAT, SQUARE_NE, DefaultMission, mission_for
 from hil.native import active as native_active
 from hil.native import status as native_status
 from hil.progress import Progress
@@ -33,9 +36,6 @@ from hil.system import DEFAULT_QUANTUM_NS, SystemConfig, build_system
 __all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
 
 NS_PER_S = 1_000_000_000
-#: the square's corners, metres north and east of home
-SQUARE_NE = ((20.0, -10.0), (20.0, 10.0), (40.0, 10.0), (40.0, -10.0))
-M_PER_DEG_LAT = 111_132.954
 
 
 @dataclass
@@ -66,7 +66,7 @@ class _Recorder:
     def __init__(self, world: Any) -> None:
         self.world = world
         self.next_ns = 0
-        #: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg, lon_deg, alt_m)
+        #: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg, lon_deg, alt_m, airspeed_m_s, aoa_rad)
         self.rows: list[tuple] = []
 
     def __call__(self, orch: Any) -> None:
@@ -75,7 +75,8 @@ class _Recorder:
         self.next_ns = orch.t_ns + 50_000_000
         tr = self.world.truth()
         self.rows.append((orch.t_ns / NS_PER_S, tr.pos_ned_m, tr.agl_m, tr.euler_rad,
-                          tr.lat_deg, tr.lon_deg, tr.alt_m))
+                          tr.lat_deg, tr.lon_deg, tr.alt_m, tr.airspeed_m_s,
+                          getattr(tr, "aoa_rad", 0.0)))
 
 
 def tier_line() -> str:
@@ -100,10 +101,14 @@ def _dist_to_segment(p: tuple[float, float], a: tuple[float, float],
 
 
 def fly(cfg: FlightConfig) -> dict[str, Any]:
-    """Fly the default mission; returns the summary (see module docstring)."""
+    """Fly the airframe's default mission; returns the summary (see module docstring)."""
+    frame = airframe_info(cfg.airframe)
+    mission = mission_for(frame.vehicle_class)
+    fixed_wing = frame.vehicle_class == "fixedwing"
+    altitude_m = cfg.altitude_m if not fixed_wing else mission.altitude_m
     # Return at the mission's altitude (PX4's default RTL_RETURN_ALT of 60 m would climb).
-    params = {"SDLOG_MODE": 0, "EKF2_MAG_DECL": 2.6, "RTL_RETURN_ALT": cfg.altitude_m,
-              "RTL_DESCEND_ALT": cfg.altitude_m, **cfg.params}
+    params = {"SDLOG_MODE": 0, "EKF2_MAG_DECL": 2.6, "RTL_RETURN_ALT": altitude_m,
+              "RTL_DESCEND_ALT": altitude_m, **cfg.params}
     scfg = SystemConfig(seed=cfg.seed, out_dir=cfg.out_dir, airframe=cfg.airframe,
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
                         params=params, gcs=True, pipeline=cfg.pipeline,
@@ -111,8 +116,9 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
                         can_escs=cfg.can_escs)
     progress = Progress(enabled=cfg.progress)
     if cfg.progress:
-        print(f"hil run: Pixhawk 1 (FMU + IO processes) flying the JSBSim F450, seed {cfg.seed}; "
-              f"{tier_line()}", flush=True)
+        print(f"hil run: Pixhawk 1 (FMU + IO processes) flying the {frame.title} "
+              f"({frame.host.world_model} JSBSim model), seed {cfg.seed}; {tier_line()}",
+              flush=True)
     progress.doing("starting the FMU and IO board processes")
     orch, dev = build_system(scfg)
     orch.on_quantum.append(progress)
@@ -122,6 +128,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
     orch.on_quantum.append(rec)
     phases: list[dict[str, Any]] = []
     S = NS_PER_S
+    n_wp = len(mission.waypoints)
 
     def phase(name: str, then: str | None = None) -> None:
         """A phase reached (recorded for the summary and printed), and what comes next."""
@@ -148,16 +155,20 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         gp = gcs.last.get("GLOBAL_POSITION_INT")
         if gp is not None:
             home = (gp.lat * 1e-7, gp.lon * 1e-7)
-        m_per_deg_lon = M_PER_DEG_LAT * math.cos(math.radians(home[0]))
-        items: list[tuple] = [(home[0], home[1], cfg.altitude_m, 22)]  # NAV_TAKEOFF
-        for n, e in SQUARE_NE:
-            items.append((home[0] + n / M_PER_DEG_LAT, home[1] + e / m_per_deg_lon,
-                          cfg.altitude_m, 16))
-        items.append((home[0], home[1], cfg.altitude_m, 20))  # NAV_RETURN_TO_LAUNCH
+        if fixed_wing:
+            items: list[Any] = mission.items(home[0], home[1], gcs.target_system,
+                                             gcs.target_component)
+        else:  # the tuples the quadrotor's flight has always sent (same bytes, same logs)
+            m_per_deg_lon = M_PER_DEG_LAT * math.cos(math.radians(home[0]))
+            items = [(home[0], home[1], cfg.altitude_m, 22)]  # NAV_TAKEOFF
+            for n, e in mission.waypoints:
+                items.append((home[0] + n / M_PER_DEG_LAT, home[1] + e / m_per_deg_lon,
+                              cfg.altitude_m, 16))
+            items.append((home[0], home[1], cfg.altitude_m, 20))  # NAV_RETURN_TO_LAUNCH
         result = gcs.upload_mission(items)
         if result != 0:
             raise RuntimeError(f"mission upload refused (MISSION_ACK type {result})")
-        phase("mission uploaded (takeoff, 4 waypoints, return)",
+        phase(f"mission uploaded ({mission.description})",
               then="waiting for the safety switch to be off")
         gcs.wait_for(lambda: _safety_off(orch), timeout_s=10.0)
         phase("safety switch off")
@@ -165,30 +176,32 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         ack = gcs.arm(timeout_s=5.0)
         if ack.result != 0:
             raise RuntimeError(f"arming refused: {gcs.last.get('STATUSTEXT')}")
-        phase("armed", then=f"mission: taking off to {cfg.altitude_m:.0f} m")
+        phase("armed", then=f"mission: taking off to {altitude_m:.0f} m")
         gcs.start_mission()
         t_takeoff = None
         outputs: dict[str, Any] | None = None
         reached: set[int] = set()
+        # a plane counts as up near its cruise altitude, a multicopter within 0.5 m of it
+        up_m = altitude_m - (5.0 if fixed_wing else 0.5)
         deadline = orch.t_ns + int(cfg.timeout_s * S)
         while orch.t_ns < deadline:
             gcs.step(0.2)
             agl = world.truth().agl_m
-            if t_takeoff is None and agl > cfg.altitude_m - 0.5:
+            if t_takeoff is None and agl > up_m:
                 t_takeoff = orch.t_ns
                 if cfg.can_escs:  # which outputs drive the motors in the climb
                     outputs = {"io_pwm": orch.call("io", "pwm"),
                                "io_should_arm": orch.call("io", "status").get("should_arm"),
                                "can_esc": [orch.call("fmu", "port_level", f"can_esc{i}")
                                            for i in range(1, 5)]}
-                phase(f"takeoff: reached {cfg.altitude_m:.0f} m",
+                phase(f"takeoff: reached {altitude_m:.0f} m",
                       then="mission: flying to waypoint 1")
             for m in gcs.messages("MISSION_ITEM_REACHED", since=max(0, gcs.mark() - 200)):
-                if 1 <= m.seq <= len(SQUARE_NE) and m.seq not in reached:
+                if 1 <= m.seq <= n_wp and m.seq not in reached:
                     reached.add(m.seq)
                     phase(f"waypoint {m.seq} reached",
                           then=(f"mission: flying to waypoint {m.seq + 1}"
-                                if m.seq < len(SQUARE_NE) else
+                                if m.seq < n_wp else
                                 "mission: returning home and landing"))
             hb = gcs.last.get("HEARTBEAT")
             armed = bool(hb and hb.base_mode & 128)
@@ -201,14 +214,28 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         cpus = orch.cpu_plan.describe() if orch.cpu_plan is not None else None
         can1 = orch.call("fmu", "can_stats", "CAN1") if cfg.can_escs else None
         uavcan = orch.call("fmu", "shell", "uavcan status")[1] if cfg.can_escs else None
+        trim_m_s = _param_value(orch, "FW_AIRSPD_TRIM") if fixed_wing else None
     wall = time.perf_counter() - wall0
-    summary = _summary(cfg, rec.rows, phases, reached, home, rtf, wall)
+    summary = _summary(cfg, mission, altitude_m, rec.rows, phases, reached, home, rtf, wall)
+    summary["airframe"] = frame.as_json()
+    summary["mission_altitude_m"] = altitude_m
+    if fixed_wing:
+        summary.update(fixed_wing_checks(mission, rec.rows, phases, world.airframe, trim_m_s))
     summary["cpus"] = cpus
     if cfg.can_escs:
         summary["can1"] = can1                   # CAN1 and its ESC nodes' counters at the end
         summary["outputs_at_takeoff"] = outputs
         summary["uavcan_status"] = uavcan
     return summary
+
+
+def _param_value(orch: Any, name: str) -> float | None:
+    """A parameter's value from the FMU's shell (None if the build does not have it)."""
+    rc, text = orch.call("fmu", "shell", f"param get {name}")
+    try:
+        return float(text.strip()) if rc == 0 else None
+    except ValueError:
+        return None
 
 
 def _estimator_ready(gcs: GcsClient) -> bool:
@@ -221,18 +248,20 @@ def _safety_off(orch: Any) -> bool:
     return bool(io and io["status_safety_off"])
 
 
-def _summary(cfg: FlightConfig, rows: list[tuple], phases: list[dict], reached: set[int],
-             home: tuple[float, float], rtf: float, wall: float) -> dict[str, Any]:
+def _summary(cfg: FlightConfig, mission: DefaultMission, altitude_m: float, rows: list[tuple],
+             phases: list[dict], reached: set[int], home: tuple[float, float], rtf: float,
+             wall: float) -> dict[str, Any]:
     t_of = {p["name"]: p["t_s"] for p in phases}
     t_top = next((p["t_s"] for p in phases if p["name"].startswith("takeoff")), None)
-    t_wp4 = next((p["t_s"] for p in phases if p["name"] == f"waypoint {len(SQUARE_NE)} reached"),
+    square = mission.waypoints
+    t_wp4 = next((p["t_s"] for p in phases if p["name"] == f"waypoint {len(square)} reached"),
                  None)
     t_wp1 = next((p["t_s"] for p in phases if p["name"] == "waypoint 1 reached"), None)
-    legs = list(zip(SQUARE_NE, SQUARE_NE[1:]))
+    legs = list(zip(square, square[1:]))
     max_h = max_v = 0.0
-    for t, pos, agl, _eul, _lat, _lon, _alt in rows:
+    for t, pos, agl, *_ in rows:
         if t_top is not None and t_wp4 is not None and t_top <= t <= t_wp4:
-            max_v = max(max_v, abs(agl - cfg.altitude_m))
+            max_v = max(max_v, abs(agl - altitude_m))
         if t_wp1 is not None and t_wp4 is not None and t_wp1 <= t <= t_wp4:
             d = min(_dist_to_segment((pos[0], pos[1]), a, b) for a, b in legs)
             max_h = max(max_h, d)
@@ -265,7 +294,7 @@ def _summary(cfg: FlightConfig, rows: list[tuple], phases: list[dict], reached: 
     if cfg.keep_truth:
         summary["truth"] = [(t.t_s, t.lat_deg, t.lon_deg, t.alt_m, *t.euler_rad) for t in truth]
     if cfg.plot and rows:
-        summary["plot"] = str(_plot(cfg, rows))
+        summary["plot"] = str(_plot(cfg, mission, altitude_m, rows))
     return summary
 
 
@@ -274,7 +303,8 @@ def _newest_log(root: Path) -> Path | None:
     return logs[-1] if logs else None
 
 
-def _plot(cfg: FlightConfig, rows: list[tuple]) -> Path:
+def _plot(cfg: FlightConfig, mission: DefaultMission, altitude_m: float, rows: list[tuple]
+          ) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -286,7 +316,7 @@ def _plot(cfg: FlightConfig, rows: list[tuple]) -> Path:
     agl = [r[2] for r in rows]
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))
     ax1.plot(e, n, label="flown (truth)")
-    sq = list(SQUARE_NE) + [SQUARE_NE[0]]
+    sq = list(mission.waypoints) + [mission.waypoints[0]]
     ax1.plot([p[1] for p in sq], [p[0] for p in sq], "k:", label="mission")
     ax1.plot([0], [0], "g^", label="home")
     ax1.set_xlabel("east (m)")
@@ -294,7 +324,7 @@ def _plot(cfg: FlightConfig, rows: list[tuple]) -> Path:
     ax1.set_aspect("equal")
     ax1.legend(loc="best")
     ax2.plot(t, agl, label="height above ground (truth)")
-    ax2.axhline(cfg.altitude_m, color="k", ls=":", lw=0.8)
+    ax2.axhline(altitude_m, color="k", ls=":", lw=0.8)
     ax2.set_xlabel("virtual time (s)")
     ax2.set_ylabel("m")
     ax2.legend(loc="best")
@@ -318,8 +348,16 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
     print("summary:")
     for p in summary["phases"]:
         print(f"  {p['t_s']:8.2f} s  {p['name']}")
-    print(f"  max altitude error at 10 m: {summary['max_alt_error_m']:.2f} m; max track error "
-          f"on the square: {summary['max_track_error_m']:.2f} m")
+    print(f"  max altitude error at {summary['mission_altitude_m']:.0f} m: "
+          f"{summary['max_alt_error_m']:.2f} m; max track error on the square: "
+          f"{summary['max_track_error_m']:.2f} m")
+    if "waypoint_miss_m" in summary:
+        print(f"  waypoints passed within {summary['waypoint_miss_m']} m; cruise airspeed "
+              f"{summary['cruise_airspeed_mean_m_s']} m/s (target "
+              f"{summary['cruise_airspeed_target_m_s']}, max error "
+              f"{summary['cruise_max_airspeed_error_m_s']}); highest angle of attack "
+              f"{summary['max_aoa_deg']} deg (stall {summary['stall_aoa_deg']}); touched down "
+              f"{summary['touchdown_distance_m']} m from the landing point")
     print(f"  estimator vs truth (its own log): attitude rms {summary['attitude_error_rms_deg']}"
           f" deg, tilt max {summary['tilt_error_max_deg']} deg, position rms "
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")

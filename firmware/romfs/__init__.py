@@ -43,6 +43,9 @@ class Airframe:
     file: str           # FMU path of the script
     name: str           # "# @name" header
     type: str           # "# @type" header
+    cls: str = ""       # "# @class" header: Copter, Plane or VTOL (PX4's airframe classes)
+    #: "# @output MAIN1 aileron" headers: (output, what it drives), in file order
+    outputs: tuple[tuple[str, str], ...] = ()
 
 
 def airframes(root: Path = ROMFS_ROOT) -> dict[int, Airframe]:
@@ -53,11 +56,14 @@ def airframes(root: Path = ROMFS_ROOT) -> dict[int, Airframe]:
         m = _AIRFRAME_FILE.match(f.name)
         if not m:
             continue
-        head = {k: v.strip() for k, v in re.findall(r"^#\s*@(\w+)\s+(.*)$", f.read_text(),
-                                                     re.MULTILINE)}
+        text = f.read_text()
+        head = {k: v.strip() for k, v in re.findall(r"^#\s*@(\w+)\s+(.*)$", text, re.MULTILINE)
+                if k != "output"}
+        outputs = tuple((o, what.strip()) for o, what in
+                        re.findall(r"^#\s*@output\s+(\S+)\s+(.*)$", text, re.MULTILINE))
         out[int(m.group(1))] = Airframe(int(m.group(1)), f"/etc/init.d/airframes/{f.name}",
                                         str(head.get("name", m.group(2))),
-                                        head.get("type", ""))
+                                        head.get("type", ""), head.get("class", ""), outputs)
     return out
 
 

@@ -18,7 +18,7 @@ def dummy(name):
 #: modules replaced by dummies (no board hardware in these tests)
 DUMMIES = ("mpu6000", "sensors", "commander", "px4io", "fmu", "ekf2", "mc_att_control",
            "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
-           "mc_rate_control")
+           "mc_rate_control", "fw_att_control", "fw_pos_control_l1")
 #: modules made unavailable on purpose, to check that a missing module is reported and skipped
 MISSING = ("l3gd20", "lsm303d", "ms5611", "hmc5883", "gps", "navigator", "land_detector",
            "mavlink")
@@ -184,10 +184,26 @@ def test_logging_disabled_by_sdlog_mode(platform, sd):
 
 def test_every_airframe_file_is_selectable():
     frames = romfs.airframes()
-    assert {a: f.name for a, f in frames.items()} == {4001: "Generic Quadcopter X",
+    assert {a: f.name for a, f in frames.items()} == {2100: "Standard Plane",
+                                                     4001: "Generic Quadcopter X",
                                                      4011: "DJI Flame Wheel F450"}
     autostart = (romfs.ROMFS_ROOT / "init.d" / "rc.autostart").read_text()
     for num, frame in frames.items():
         assert f"param compare SYS_AUTOSTART {num}" in autostart
         assert frame.file.rsplit("/", 1)[1] in autostart
-        assert frame.type == "Quadrotor x"
+    assert {f.type for f in frames.values()} == {"Quadrotor x", "Standard Plane"}
+    assert frames[2100].cls == "Plane" and frames[4011].cls == "Copter"
+    assert frames[2100].outputs == (("MAIN1", "aileron"), ("MAIN2", "elevator"),
+                                    ("MAIN3", "throttle"), ("MAIN4", "rudder"))
+
+
+def test_standard_plane_starts_fw_apps_with_the_aetr_mixer_at_50_hz(platform, sd):
+    b = Board(platform, sd, autostart=2100, autoconfig=1)
+    status, text = b.boot()
+    assert status == 0
+    assert "[init] airframe: 2100_standard_plane" in text
+    assert {"ekf2", "fw_att_control", "fw_pos_control_l1", "px4io"} <= b.running
+    assert not {"mc_att_control", "mc_pos_control", "mc_rate_control"} & b.running
+    env = b.shell.env
+    assert (env["VEHICLE_TYPE"], env["MIXER"], env["PWM_RATE"]) == ("fw", "AETR", "50")
+    assert "[init] mixer: /etc/mixers/AETR.main.mix" in text

@@ -1,0 +1,66 @@
+"""What a PX4 user looks at after a fixed-wing mission, from the world's recorded truth.
+
+The rows are ``hil.flight._Recorder`` rows: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg,
+lon_deg, alt_m, airspeed_m_s, aoa_rad), every 50 ms of virtual time. "Cruise" is the square:
+from waypoint 1 reached to the last waypoint reached, where altitude and airspeed are held.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from hil.missions import DefaultMission
+
+__all__ = ["fixed_wing_checks"]
+
+#: a row counts as airborne when the IMU is this far above its height on the gear
+AIRBORNE_MARGIN_M = 1.0
+#: and as touched down when it is within this of it
+TOUCHDOWN_MARGIN_M = 0.15
+
+
+def _phase_t(phases: list[dict[str, Any]], name: str) -> float | None:
+    return next((p["t_s"] for p in phases if p["name"] == name), None)
+
+
+def fixed_wing_checks(mission: DefaultMission, rows: list[tuple], phases: list[dict[str, Any]],
+                      airframe: Any, airspeed_target_m_s: float | None = None
+                      ) -> dict[str, Any]:
+    """Waypoint misses, cruise altitude and airspeed errors, the highest angle of attack
+    against the model's stall angle, and where the plane touched down."""
+    n = len(mission.waypoints)
+    miss = [min((math.hypot(r[1][0] - wn, r[1][1] - we) for r in rows), default=math.inf)
+            for wn, we in mission.waypoints]
+    t1 = _phase_t(phases, "waypoint 1 reached")
+    tn = _phase_t(phases, f"waypoint {n} reached")
+    cruise = [r for r in rows if t1 is not None and tn is not None and t1 <= r[0] <= tn]
+    alt_err = max((abs(r[2] - mission.altitude_m) for r in cruise), default=math.nan)
+    speeds = [r[7] for r in cruise]
+    mean_speed = sum(speeds) / len(speeds) if speeds else math.nan
+    target = airspeed_target_m_s if airspeed_target_m_s is not None else mean_speed
+    speed_err = max((abs(v - target) for v in speeds), default=math.nan)
+    gear = float(getattr(airframe, "gear_height_m", 0.0))
+    airborne = [r for r in rows if r[2] > gear + AIRBORNE_MARGIN_M]
+    max_aoa = max((r[8] for r in airborne), default=math.nan)
+    stall = getattr(airframe, "stall_aoa_rad", None)
+    touchdown = None
+    if tn is not None:
+        for r in rows:
+            if r[0] > tn and r[2] < gear + TOUCHDOWN_MARGIN_M:
+                touchdown = r
+                break
+    td_n, td_e = mission.touchdown_ne
+    return {
+        "waypoint_miss_m": [round(d, 2) for d in miss],
+        "cruise_max_alt_error_m": round(alt_err, 2),
+        "cruise_airspeed_mean_m_s": round(mean_speed, 2),
+        "cruise_airspeed_target_m_s": None if target is None else round(target, 2),
+        "cruise_max_airspeed_error_m_s": round(speed_err, 2),
+        "max_aoa_deg": round(math.degrees(max_aoa), 2),
+        "stall_aoa_deg": None if stall is None else round(math.degrees(stall), 2),
+        "touchdown_t_s": None if touchdown is None else round(touchdown[0], 2),
+        "touchdown_distance_m": (None if touchdown is None else
+                                 round(math.hypot(touchdown[1][0] - td_n,
+                                                  touchdown[1][1] - td_e), 2)),
+    }
