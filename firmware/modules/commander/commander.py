@@ -25,6 +25,11 @@ from firmware.modules.commander.esc_check import EscCheck
 from firmware.modules.commander.failure_detector import FAILURE_DETECTOR_PARAMS, FailureDetector
 from firmware.modules.commander.geofence import GEOFENCE_PARAMS, Geofence
 from firmware.modules.commander.params import PARAMS
+from firmware.modules.commander.vehicle_type import (
+    MAV_TYPE_QUADROTOR,
+    VEHICLE_TYPE_FIXED_WING,
+    classify,
+)
 from firmware.platform.module import WorkItemModule
 
 if TYPE_CHECKING:
@@ -39,7 +44,6 @@ R_STANDBY, R_RC_STICK, R_RC_SWITCH, R_CMD_INTERNAL, R_CMD_EXTERNAL, R_MISSION_ST
 R_AUTO_DISARM_LAND, R_AUTO_DISARM_PREFLIGHT, R_KILL_SWITCH, R_FAILSAFE = 7, 8, 9, 15
 CHECK_EVERY = 10                 # loops between preflight checks while disarmed (10 Hz)
 PUBLISH_INTERVAL_US = 500_000
-MAV_TYPE_QUADROTOR = 2
 _BAT_TEXT = {1: "Low battery level! Return advised", 2: "Critical battery level!",
              3: "Emergency battery level! Land now"}
 
@@ -95,6 +99,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.offboard_mode = modes.offboard_flags(True, False, False, False, False)
         self.geofence = Geofence(self)
         self.failure_detector = FailureDetector(self)
+        self.mav_type = MAV_TYPE_QUADROTOR
+        self.vehicle_type, self.is_vtol = classify(self.mav_type)
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -118,7 +124,6 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._home = orb.new("home_position")
         self._ack = orb.new("vehicle_command_ack")
         self._cmd_cls = orb.registry.cls("vehicle_command")
-        self._flags = {nav: modes.control_flags(nav) for nav in modes.NAV_NAMES}
         self._loop = 0
         self._last_pub_us = -PUBLISH_INTERVAL_US
         self._last_sig: tuple | None = None
@@ -135,6 +140,14 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.of_loss_us = int(self.p["COM_OF_LOSS_T"] * 1e6)
         params = self.system.params
         self.sys_id = int(params.get("MAV_SYS_ID", 1) or 1) if params is not None else 1
+        # MAV_TYPE (the mavlink module's parameter, set by the airframe file): the vehicle's
+        # type, and with it the control flags of every mode
+        mav_type = params.get("MAV_TYPE", MAV_TYPE_QUADROTOR) if params is not None else None
+        self.mav_type = int(mav_type) if mav_type is not None else MAV_TYPE_QUADROTOR
+        self.vehicle_type, self.is_vtol = classify(self.mav_type)
+        fixed_wing = self.vehicle_type == VEHICLE_TYPE_FIXED_WING
+        self._flags = {nav: modes.control_flags(nav, fixed_wing=fixed_wing)
+                       for nav in modes.NAV_NAMES}
 
     def mission_count(self) -> int:
         m = self._sub_mission.node.last
@@ -434,7 +447,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
         sig = (self.offboard_mode, self.arming_state, self.nav_state, self.user_nav,
                self.failsafe_active,
                self.failsafe_action, self.rc_lost, self.dl_lost, ready, bat, self.kill_engaged,
-               self.have_taken_off, self.failure_detector.status, self.failure_detector.lockdown)
+               self.have_taken_off, self.failure_detector.status, self.failure_detector.lockdown,
+               self.mav_type)
         if sig == self._last_sig and now - self._last_pub_us < PUBLISH_INTERVAL_US:
             return
         self._last_sig, self._last_pub_us = sig, now
@@ -448,8 +462,9 @@ class CommanderModule(CommandHandler, WorkItemModule):
         s.latest_disarming_reason = self.disarm_reason
         s.nav_state = self.nav_state
         s.nav_state_user_intention = self.user_nav
-        s.vehicle_type = s.VEHICLE_TYPE_ROTARY_WING
-        s.system_type = MAV_TYPE_QUADROTOR
+        s.vehicle_type = self.vehicle_type
+        s.is_vtol = self.is_vtol
+        s.system_type = self.mav_type
         s.system_id = self.sys_id
         s.component_id = 1
         s.failsafe = self.failsafe_active
@@ -467,7 +482,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
 
         m = self._mode
         m.timestamp = now
-        flags = modes.control_flags(modes.OFFBOARD, self.offboard_mode) \
+        flags = modes.control_flags(modes.OFFBOARD, self.offboard_mode,
+                                    self.vehicle_type == VEHICLE_TYPE_FIXED_WING) \
             if self.nav_state == modes.OFFBOARD else \
             self._flags.get(self.nav_state, self._flags[modes.MANUAL])
         for k, v in flags.items():

@@ -152,12 +152,20 @@ def offboard_flags(position: bool, velocity: bool, acceleration: bool, attitude:
     return _FLAGS[OFFBOARD]
 
 
-def control_flags(nav_state: int, offboard: int | None = None) -> dict[str, bool]:
-    """vehicle_control_mode flags for a navigation state (multicopter); ``offboard``: the
-    :func:`offboard_flags` to use in Offboard mode."""
+def control_flags(nav_state: int, offboard: int | None = None,
+                  fixed_wing: bool = False) -> dict[str, bool]:
+    """vehicle_control_mode flags for a navigation state; ``offboard``: the
+    :func:`offboard_flags` to use in Offboard mode.
+
+    ``fixed_wing``: PX4's control_mode for a plane: Manual is really manual (no rate or
+    attitude loop: a plane flies without stabilization, so the sticks go to the surfaces,
+    PX4's stabilization_required() is true only for rotary wings), and the multicopter
+    position controller never runs (flag_multicopter_position_control_enabled false)."""
     f = _FLAGS.get(nav_state, _MANUAL_F | _RATES | _ATT)
     if nav_state == OFFBOARD and offboard is not None:
         f = offboard
+    if fixed_wing and nav_state == MANUAL:
+        f = _MANUAL_F
     out = {
         "flag_control_manual_enabled": bool(f & _MANUAL_F),
         "flag_control_auto_enabled": bool(f & _AUTO_F),
@@ -171,7 +179,7 @@ def control_flags(nav_state: int, offboard: int | None = None) -> dict[str, bool
         "flag_control_climb_rate_enabled": bool(f & _CLIMB),
         "flag_control_termination_enabled": bool(f & _TERM_F),
     }
-    out["flag_multicopter_position_control_enabled"] = bool(
+    out["flag_multicopter_position_control_enabled"] = not fixed_wing and bool(
         f & (_ALT | _CLIMB | _POS | _VEL | _ACC))
     return out
 

@@ -1,4 +1,7 @@
-"""Multicopter land detector: ground contact -> maybe landed -> landed, with hysteresis.
+"""Land detector: ``land_detector start multicopter|fixedwing`` (PX4's module and types).
+
+Fixed wing: see :mod:`firmware.modules.land_detector.fixedwing`. Multicopter (the default when
+no type is given): ground contact -> maybe landed -> landed, with hysteresis.
 
 A multicopter has no weight-on-wheels switch, so landing is inferred from what the controllers
 and the estimator see (PX4's multicopter logic, restated):
@@ -22,13 +25,18 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from firmware.platform.module import WorkItemModule
+from firmware.modules.land_detector.fixedwing import FW_PARAMS, FixedwingDetector
+from firmware.platform.module import UsageError, WorkItemModule
 from firmware.platform.params import ParamDef
+from firmware.platform.uorb import Subscription
 
 if TYPE_CHECKING:
     from firmware.system import System
 
-__all__ = ["PARAMS", "Hysteresis", "LandDetectorModule"]
+__all__ = ["KINDS", "PARAMS", "Hysteresis", "LandDetectorModule"]
+
+#: the vehicle types ``land_detector start`` takes (PX4's; vtol, rover, airship not built)
+KINDS = ("multicopter", "fixedwing")
 
 _G = "Land Detector"
 G = 9.80665
@@ -88,21 +96,35 @@ class LandDetectorModule(WorkItemModule):
     """``land_detector``: publishes vehicle_land_detected at 50 Hz (on change, else at 1 Hz)."""
 
     NAME = "land_detector"
-    DESCRIPTION = "multicopter land detector"
+    DESCRIPTION = "land detector (multicopter, fixedwing)"
+    USAGE = ("start [multicopter|fixedwing]   the vehicle type's detector (default multicopter)",)
     WQ = "wq:nav_and_controllers"
     INTERVAL_US = 20_000
     #: STM32F427: a handful of comparisons and three topic copies, ~40 us
     CPU_COST_NS = 40_000
-    PARAMS = PARAMS
+    PARAMS = PARAMS + FW_PARAMS
+
+    @classmethod
+    def instantiate(cls, system: System, args: Sequence[str]) -> LandDetectorModule:
+        kinds = [a for a in args if not a.startswith("-")]
+        if len(kinds) > 1 or (kinds and kinds[0] not in KINDS):
+            raise UsageError(f"unknown vehicle type {' '.join(kinds)!r} "
+                             f"(one of {', '.join(KINDS)})")
+        return cls(system, args)
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
+        kinds = [a for a in args if a in KINDS]
+        self.kind = kinds[0] if kinds else "multicopter"
+        self.fw: FixedwingDetector | None = FixedwingDetector() \
+            if self.kind == "fixedwing" else None
         self.armed = False
         self.ground_contact = Hysteresis(True)
         self.maybe_landed = Hysteresis(True)
         self.landed = Hysteresis(True)
         self.freefall = Hysteresis(False)
         self.last_publish_us = -(1 << 62)
+        self.sub_airspeed: Subscription | None = None
 
     def _start(self) -> None:
         orb = self.platform.orb
@@ -119,6 +141,11 @@ class LandDetectorModule(WorkItemModule):
         self.sub_mode = self.subscribe("vehicle_control_mode")
         self.sub_hte = self.subscribe("hover_thrust_estimate")
         self.sub_param = self.subscribe("parameter_update")
+        if self.fw is not None:
+            self.sub_accel = self.subscribe("vehicle_acceleration")
+            # the airspeed module's topic (absent from a build without it: no airspeed check)
+            self.sub_airspeed = self.subscribe("airspeed") \
+                if "airspeed" in orb.registry.topics else None
         self._load_params()
         m.timestamp = self.platform.hrt.absolute_time()
         self.pub.publish(m)
@@ -138,6 +165,9 @@ class LandDetectorModule(WorkItemModule):
         self.thr_min = float(get("MPC_THR_MIN", 0.12))
         self.manthr_min = float(get("MPC_MANTHR_MIN", 0.08))
         self.hover_param = float(get("MPC_THR_HOVER", 0.5))
+        if self.fw is not None:
+            self.fw.load(p)
+            self.landed.set_us = int(p("LNDFW_TRIG_TIME") * 1e6)
 
     def run(self) -> None:
         now = self.platform.hrt.absolute_time()
@@ -156,6 +186,10 @@ class LandDetectorModule(WorkItemModule):
             m.has_low_throttle = True
             m.in_descend = False
             m.close_to_ground_or_skipped_check = True
+            if self.fw is not None:
+                self.fw.reset()
+        elif self.fw is not None:
+            self._detect_fw(lp, now)
         else:
             self._detect(lp, now)
         changed = (m.landed != self.landed.state or m.maybe_landed != self.maybe_landed.state
@@ -209,9 +243,32 @@ class LandDetectorModule(WorkItemModule):
         m.in_descend = in_descend
         m.close_to_ground_or_skipped_check = close
 
+    def _detect_fw(self, lp, now: int) -> None:
+        """Fixed wing: one landed condition; ground contact and maybe landed follow it."""
+        fw = self.fw
+        assert fw is not None
+        lp_age = now - self.sub_lpos.node.last_publish_ns // 1000
+        aspd_sub = self.sub_airspeed
+        aspd, aspd_age = None, 1 << 62
+        if aspd_sub is not None:
+            aspd = aspd_sub.copy()
+            aspd_age = now - aspd_sub.node.last_publish_ns // 1000
+        landed = fw.landed(lp, lp_age, aspd, aspd_age, self.sub_accel.copy())
+        self.landed.update(landed, now)
+        self.ground_contact.force(self.landed.state)
+        self.maybe_landed.force(self.landed.state)
+        self.freefall.force(False)
+        m = self.msg
+        m.vertical_movement = fw.vel_z_filt >= fw.vel_z_max
+        m.horizontal_movement = fw.vel_xy_filt >= fw.vel_xy_max
+        m.rotational_movement = False
+        m.has_low_throttle = m.in_descend = False
+        m.close_to_ground_or_skipped_check = True
+
     def status_lines(self) -> list[str]:
         m = self.msg
-        return [(f"landed {m.landed} maybe_landed {m.maybe_landed} ground_contact "
+        extra = [self.fw.status_line()] if self.fw is not None else []
+        return [f"type: {self.kind}"] + extra + [(f"landed {m.landed} maybe_landed {m.maybe_landed} ground_contact "
                  f"{m.ground_contact} freefall {m.freefall}"),
                 (f"low throttle {m.has_low_throttle} vertical {m.vertical_movement} horizontal "
                  f"{m.horizontal_movement} rotational {m.rotational_movement}")]
