@@ -1,0 +1,282 @@
+"""Total energy control (TECS) for fixed-wing altitude and airspeed (PX4's ``TECS`` in shape).
+
+Lambregts' idea, as PX4 and ArduPilot use it: the aircraft's specific energies, potential
+``SPE = g h`` and kinetic ``SKE = V^2 / 2`` (J/kg), are controlled as two combinations:
+
+* the **total** ``STE = SPE + SKE`` is what the propeller changes: throttle comes from the total
+  energy error and rate (feed-forward from the demanded rate between the cruise throttle and the
+  throttle limits, ``FW_T_CLMB_MAX`` and ``FW_T_SINK_MIN`` scaling it; P with time constant
+  ``FW_T_THRO_CONST``, damping ``FW_T_THR_DAMP``, integrator ``FW_T_INTEG_GAIN``, and the extra
+  drag of a banked turn, ``FW_T_RLL2THR``);
+* the **balance** ``SEB = SPE w_p - SKE w_k`` is what the elevator trades: pitch comes from
+  the balance error and rate (time constant ``FW_T_TIME_CONST``), so climbing with the same
+  energy means slowing down, and the pitch loop never fights the throttle loop.
+  ``FW_T_SPDWEIGHT`` (0..2) sets the weights: 0 controls height only with pitch, 2 speed only.
+
+Demands are shaped before use: the height setpoint is followed at most at the climb and sink
+limits and gives a height rate demand with time constant ``FW_T_ALT_TC`` plus the ramp's rate
+times ``FW_T_HRATE_FF``; the airspeed setpoint is kept between ``FW_AIRSPD_MIN`` and
+``FW_AIRSPD_MAX`` and followed with time constant ``FW_T_TAS_TC``, its rate limited by what the
+throttle range can give (half the total energy rate range, all of it kinetic).
+
+Protections: underspeed (true airspeed below 90 % of the minimum while the throttle is at its
+maximum) puts the throttle at maximum and the pitch on speed only; climb-out (a large height
+error, or the caller's takeoff) flies full throttle and pitch on speed only at the minimum
+airspeed, with a minimum pitch: the steepest climb the aircraft has.
+Without a valid airspeed (``airspeed_valid = False``) the speed is taken as ``FW_AIRSPD_TRIM``
+and the pitch controls height only (PX4's airspeed-less mode).
+
+Pure computation on floats, no uORB or parameters: fw_pos_control_l1 hands it the estimator's
+state and its setpoints; tests/firmware/fw/test_tecs.py flies a point-mass energy model with it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final
+
+__all__ = ["Tecs", "TecsParams", "TecsStatus"]
+
+G: Final = 9.80665
+
+
+@dataclass
+class TecsParams:
+    """The FW_T_* and FW_AIRSPD_* values TECS needs (SI units; PX4 defaults)."""
+
+    time_const_s: float = 5.0          # FW_T_TIME_CONST
+    throttle_time_const_s: float = 8.0  # FW_T_THRO_CONST
+    alt_error_tc_s: float = 5.0        # FW_T_ALT_TC
+    tas_error_tc_s: float = 2.0        # FW_T_TAS_TC
+    hgt_rate_ff: float = 0.3           # FW_T_HRATE_FF
+    climb_max_m_s: float = 5.0         # FW_T_CLMB_MAX
+    sink_min_m_s: float = 2.0          # FW_T_SINK_MIN
+    sink_max_m_s: float = 5.0          # FW_T_SINK_MAX
+    throttle_damp: float = 0.1         # FW_T_THR_DAMP
+    pitch_damp: float = 0.1            # FW_T_PTCH_DAMP
+    integ_gain: float = 0.1            # FW_T_INTEG_GAIN
+    vert_accel_max_m_s2: float = 7.0   # FW_T_VERT_ACC
+    speed_weight: float = 1.0          # FW_T_SPDWEIGHT
+    roll_to_throttle: float = 15.0     # FW_T_RLL2THR
+    spd_omega: float = 2.0             # FW_T_SPD_OMEGA (airspeed complementary filter)
+    airspeed_min_m_s: float = 10.0     # FW_AIRSPD_MIN
+    airspeed_trim_m_s: float = 15.0    # FW_AIRSPD_TRIM
+    airspeed_max_m_s: float = 20.0     # FW_AIRSPD_MAX
+
+
+@dataclass
+class TecsStatus:
+    """What one update computed (logged as tecs_status)."""
+
+    altitude_sp_m: float = 0.0
+    altitude_filtered_m: float = 0.0
+    height_rate_sp_m_s: float = 0.0
+    height_rate_m_s: float = 0.0
+    tas_sp_m_s: float = 0.0
+    tas_filtered_m_s: float = 0.0
+    tas_rate_sp_m_s2: float = 0.0
+    tas_rate_m_s2: float = 0.0
+    ste_error: float = 0.0
+    ste_rate_error: float = 0.0
+    seb_error: float = 0.0
+    seb_rate_error: float = 0.0
+    throttle_integ: float = 0.0
+    pitch_integ: float = 0.0
+    throttle_sp: float = 0.0
+    pitch_sp_rad: float = 0.0
+    underspeed: bool = False
+    climbout: bool = False
+    airspeed_valid: bool = True
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else (hi if x > hi else x)
+
+
+class Tecs:
+    """TECS state: call :meth:`update` at the position control rate; :meth:`reset` when the
+    controller was not in charge (manual modes, on the ground), so no stale integrator or
+    demand is carried into the next flight phase."""
+
+    def __init__(self, params: TecsParams | None = None) -> None:
+        self.p = params if params is not None else TecsParams()
+        self.status = TecsStatus()
+        self.reset()
+
+    def reset(self) -> None:
+        self.initialised = False
+        self.hgt_sp_adj = 0.0
+        self.hgt_sp_adj_prev = 0.0
+        self.tas_state = 0.0
+        self.tas_rate_state = 0.0
+        self.tas_sp_adj = 0.0
+        self.throttle_integ = 0.0
+        self.pitch_integ = 0.0
+        self.last_pitch_sp = 0.0
+        self.last_throttle = 0.0
+        self.underspeed = False
+        self.throttle_sp = 0.0
+        self.pitch_sp = 0.0
+
+    # -- state estimates ---------------------------------------------------------------------------
+
+    def _update_airspeed(self, dt: float, tas: float, accel_x: float, valid: bool) -> None:
+        """Complementary filter of true airspeed and longitudinal acceleration (less noise and
+        lag than either alone; crossover ``FW_T_SPD_OMEGA``)."""
+        p = self.p
+        if not valid or not math.isfinite(tas):
+            self.tas_state = p.airspeed_trim_m_s
+            self.tas_rate_state = 0.0
+            return
+        if not self.initialised:
+            self.tas_state = max(tas, 0.0)
+            self.tas_rate_state = 0.0
+            return
+        w = p.spd_omega
+        err = tas - self.tas_state
+        self.tas_rate_state += err * w * w * dt
+        self.tas_state = max(self.tas_state + (err * 2.0 * w + self.tas_rate_state + accel_x)
+                             * dt, 0.0)
+
+    # -- the update --------------------------------------------------------------------------------
+
+    def update(self, dt: float, *, altitude_m: float, height_rate_m_s: float, tas_m_s: float,
+               airspeed_valid: bool, accel_x_m_s2: float, pitch_rad: float, roll_rad: float,
+               hgt_sp_m: float, tas_sp_m_s: float, throttle_min: float, throttle_max: float,
+               throttle_cruise: float, pitch_min_rad: float, pitch_max_rad: float,
+               climbout: bool = False, climbout_pitch_min_rad: float = 0.0,
+               speed_weight: float | None = None, alt_tc_s: float | None = None) -> None:
+        """One step: :attr:`throttle_sp` (0..1) and :attr:`pitch_sp` (rad) from the state and
+        the demands. ``speed_weight`` and ``alt_tc_s`` override the parameters for one call
+        (the landing flare trades speed for height with its own time constant)."""
+        p = self.p
+        dt = _clamp(dt, 0.001, 0.2)
+        self._update_airspeed(dt, tas_m_s, accel_x_m_s2, airspeed_valid)
+        if not self.initialised:
+            self.hgt_sp_adj = self.hgt_sp_adj_prev = altitude_m
+            self.tas_sp_adj = self.tas_state if airspeed_valid else p.airspeed_trim_m_s
+            self.last_pitch_sp = pitch_rad
+            self.last_throttle = throttle_cruise
+            self.throttle_integ = 0.0
+            self.pitch_integ = 0.0
+            self.initialised = True
+        tas = max(self.tas_state, 1.0)
+        ste_rate_max = G * p.climb_max_m_s
+        ste_rate_min = -G * p.sink_min_m_s
+
+        # airspeed demand: limits, climb-out at the minimum, rate limited by the throttle range
+        v_min, v_max = p.airspeed_min_m_s, max(p.airspeed_max_m_s, p.airspeed_min_m_s)
+        tas_sp = _clamp(tas_sp_m_s if math.isfinite(tas_sp_m_s) else p.airspeed_trim_m_s,
+                        v_min, v_max)
+        if climbout:
+            tas_sp = v_min
+        if not airspeed_valid:
+            tas_sp = p.airspeed_trim_m_s
+        vel_rate_max = 0.5 * ste_rate_max / tas
+        vel_rate_min = 0.5 * ste_rate_min / tas
+        self.tas_sp_adj = _clamp(tas_sp, self.tas_sp_adj + vel_rate_min * dt,
+                                 self.tas_sp_adj + vel_rate_max * dt)
+        tas_rate_sp = _clamp((self.tas_sp_adj - self.tas_state) / max(p.tas_error_tc_s, 0.1),
+                             vel_rate_min, vel_rate_max)
+
+        # height demand: followed at most at the climb/sink limits
+        prev = self.hgt_sp_adj
+        self.hgt_sp_adj = _clamp(hgt_sp_m, prev - p.sink_max_m_s * dt, prev + p.climb_max_m_s * dt)
+        ramp_rate = (self.hgt_sp_adj - prev) / dt
+        tc = alt_tc_s if alt_tc_s is not None else p.alt_error_tc_s
+        hgt_rate_sp = _clamp((self.hgt_sp_adj - altitude_m) / max(tc, 0.1)
+                             + p.hgt_rate_ff * ramp_rate, -p.sink_max_m_s, p.climb_max_m_s)
+
+        # underspeed: not enough energy to keep flying at any pitch
+        self.underspeed = (airspeed_valid and self.tas_state < 0.9 * v_min
+                           and self.last_throttle >= 0.95 * throttle_max)
+        if airspeed_valid and self.tas_state > v_min:
+            self.underspeed = False
+
+        # energies and their rates
+        spe_sp, spe = G * self.hgt_sp_adj, G * altitude_m
+        spe_rate_sp, spe_rate = G * hgt_rate_sp, G * height_rate_m_s
+        ske_sp, ske = 0.5 * self.tas_sp_adj * self.tas_sp_adj, 0.5 * tas * tas
+        ske_rate_sp, ske_rate = tas * tas_rate_sp, tas * self.tas_rate_state
+
+        # weights: 0 = height only, 2 = speed only
+        sw = _clamp(speed_weight if speed_weight is not None else p.speed_weight, 0.0, 2.0)
+        if not airspeed_valid:
+            sw = 0.0
+        if self.underspeed or (climbout and airspeed_valid):
+            sw = 2.0     # pitch on speed only: climb as steeply as the minimum speed allows
+        w_spe, w_ske = min(2.0 - sw, 1.0), min(sw, 1.0)
+
+        self._throttle(dt, spe_sp + ske_sp - spe - ske, spe_rate_sp + ske_rate_sp,
+                       spe_rate + ske_rate, ste_rate_max, ste_rate_min, roll_rad,
+                       throttle_min, throttle_max, throttle_cruise, climbout)
+        self._pitch(dt, w_spe * spe_sp - w_ske * ske_sp - (w_spe * spe - w_ske * ske),
+                    w_spe * spe_rate_sp - w_ske * ske_rate_sp,
+                    w_spe * spe_rate - w_ske * ske_rate, tas, pitch_min_rad, pitch_max_rad,
+                    climbout, climbout_pitch_min_rad)
+
+        s = self.status
+        s.altitude_sp_m, s.altitude_filtered_m = self.hgt_sp_adj, altitude_m
+        s.height_rate_sp_m_s, s.height_rate_m_s = hgt_rate_sp, height_rate_m_s
+        s.tas_sp_m_s, s.tas_filtered_m_s = self.tas_sp_adj, self.tas_state
+        s.tas_rate_sp_m_s2, s.tas_rate_m_s2 = tas_rate_sp, self.tas_rate_state
+        s.throttle_integ, s.pitch_integ = self.throttle_integ, self.pitch_integ
+        s.throttle_sp, s.pitch_sp_rad = self.throttle_sp, self.pitch_sp
+        s.underspeed, s.climbout, s.airspeed_valid = self.underspeed, climbout, airspeed_valid
+
+    def _throttle(self, dt: float, ste_error: float, ste_rate_sp: float, ste_rate: float,
+                  ste_rate_max: float, ste_rate_min: float, roll: float, thr_min: float,
+                  thr_max: float, thr_cruise: float, climbout: bool) -> None:
+        p = self.p
+        s = self.status
+        # the extra drag of a banked turn (load factor - 1) wants more total energy rate
+        cos_r = max(math.cos(roll), 0.1)
+        ste_rate_sp = _clamp(ste_rate_sp, ste_rate_min, ste_rate_max) \
+            + p.roll_to_throttle * (1.0 / cos_r - 1.0)
+        ste_rate_error = ste_rate_sp - ste_rate
+        s.ste_error, s.ste_rate_error = ste_error, ste_rate_error
+        if self.underspeed or climbout:
+            thr = thr_max
+            self.throttle_integ = 0.0
+        else:
+            k = 1.0 / (max(p.throttle_time_const_s, 0.1) * (ste_rate_max - ste_rate_min))
+            if ste_rate_sp >= 0.0:
+                ff = thr_cruise + ste_rate_sp / ste_rate_max * (thr_max - thr_cruise)
+            else:
+                ff = thr_cruise + ste_rate_sp / ste_rate_min * (thr_min - thr_cruise)
+            unc = (ste_error + ste_rate_error * p.throttle_damp) * k + ff
+            # integrator bounded by the room the P and feed-forward terms leave (PX4's limits)
+            integ = self.throttle_integ + ste_error * p.integ_gain * dt * k
+            self.throttle_integ = _clamp(integ, thr_min - unc, max(thr_max - unc,
+                                                                   thr_min - unc))
+            thr = unc + self.throttle_integ
+        self.throttle_sp = _clamp(thr, thr_min, thr_max)
+        self.last_throttle = self.throttle_sp
+
+    def _pitch(self, dt: float, seb_error: float, seb_rate_sp: float, seb_rate: float,
+               tas: float, pitch_min: float, pitch_max: float, climbout: bool,
+               climbout_pitch_min: float) -> None:
+        p = self.p
+        s = self.status
+        seb_rate_error = seb_rate_sp - seb_rate
+        s.seb_error, s.seb_rate_error = seb_error, seb_rate_error
+        tc = max(p.time_const_s, 0.1)
+        gain_inv = tas * tc * G           # SEB per radian of pitch over one time constant
+        if climbout:
+            pitch_min = max(pitch_min, min(climbout_pitch_min, pitch_max))
+        correction = seb_error + seb_rate_error * p.pitch_damp + seb_rate_sp * tc
+        integ = self.pitch_integ + seb_error * p.integ_gain * dt
+        # anti-windup: the integrator may not push the setpoint further past a limit
+        unc = (correction + integ) / gain_inv
+        if unc > pitch_max:
+            integ = min(integ, max(self.pitch_integ, pitch_max * gain_inv - correction))
+        elif unc < pitch_min:
+            integ = max(integ, min(self.pitch_integ, pitch_min * gain_inv - correction))
+        self.pitch_integ = integ
+        pitch = _clamp((correction + integ) / gain_inv, pitch_min, pitch_max)
+        # pitch rate limit from the vertical acceleration limit
+        d = p.vert_accel_max_m_s2 / tas * dt
+        pitch = _clamp(pitch, self.last_pitch_sp - d, self.last_pitch_sp + d)
+        self.pitch_sp = _clamp(pitch, pitch_min, pitch_max)
+        self.last_pitch_sp = self.pitch_sp
