@@ -53,6 +53,7 @@ from typing import Any
 from board.adc import Adc
 from board.board import Board
 from board.fmu_can import FmuCanSide
+from board.fmu_pwm import FmuPwmSide
 from board.gpio import Gpio
 from board.i2c import I2cBus
 from board.spi import SpiBus
@@ -84,7 +85,7 @@ _SPI_CLOCK = {"mpu6000": 1_000_000, "l3gd20": 11_000_000, "lsm303d": 11_000_000,
               "ms5611": 20_000_000, "fm25v01": 20_000_000}
 
 
-class FmuV2Board(FmuCanSide, Board):
+class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
     """The FMU: STM32F427 with the FMUv2 sensor set."""
 
     def __init__(self, name: str = "fmu", seed: int = 0, fram_path: str | None = None,
@@ -133,6 +134,7 @@ class FmuV2Board(FmuCanSide, Board):
         if self._uavcan_nodes:
             self._build_can()
         self._expose_ports()
+        self._build_pwm_outputs()
         for connector in host_ports:
             self._expose_host_port(connector)
         self._power_v = 0.0

@@ -2,7 +2,8 @@
 
 On the Pixhawk 1 the main outputs belong to the IO coprocessor, so ``/dev/pwm_output0`` is the
 px4io driver, which uploads the file to the IO's mixer page. The FMU's own outputs
-(``/dev/px4fmu``) are driven by the ``fmu`` module when it is running; ``/dev/uavcan/esc`` is
+(``/dev/px4fmu``, ``/dev/pwm_output1`` beside the IO: the AUX rail) are driven by the ``fmu``
+module when it is running; ``/dev/uavcan/esc`` is
 the uavcan driver's CAN ESC output (``UAVCAN_ENABLE`` 3).
 """
 
@@ -16,7 +17,8 @@ if TYPE_CHECKING:
 __all__ = ["COMMANDS"]
 
 _DEVICES: Final = {"/dev/pwm_output0": ("px4io", "fmu"), "/dev/px4io": ("px4io",),
-            "/dev/px4fmu": ("fmu",), "/dev/uavcan/esc": ("uavcan",)}
+            "/dev/pwm_output1": ("fmu",), "/dev/px4fmu": ("fmu",),
+            "/dev/uavcan/esc": ("uavcan",)}
 
 
 def cmd_mixer(sh: Shell, argv: list[str]) -> int:

@@ -26,6 +26,7 @@ CR1_CEN: Final = 0x0001
 CR1_ARPE: Final = 0x0080
 EGR_UG: Final = 0x0001
 OCM_PWM1: Final = 6
+BDTR_MOE: Final = 0x8000
 #: CCR preset at channel init (io-and-rc.md §3.2: "CCR preset to 1000").
 CHANNEL_DEFAULT_CCR: Final = 1000
 DEFAULT_RATE_HZ: Final = 50
@@ -41,13 +42,23 @@ def _ccmr(channel: int) -> tuple[str, int]:
 
 
 class PwmServo:
-    """Eight outputs on three timers; ``set`` takes µs, 0 = no pulse."""
+    """Outputs on timer channels (the IO: eight on three timers); ``set`` takes µs, 0 = no
+    pulse. The same layer drives the FMU's AUX outputs (PX4's drv_pwm_servo serves both
+    processors): each timer counts at 1 MHz from its own clock, and an advanced timer
+    (TIM1/TIM8) gets BDTR.MOE, without which its outputs stay off."""
 
     def __init__(self, timers: Sequence[Timer], channels: Sequence[tuple[int, int]] = PWM_CHANNELS,
-                 clock_hz: int = TIMER_CLOCK_HZ) -> None:
+                 clock_hz: int | Sequence[int] = TIMER_CLOCK_HZ,
+                 advanced: Sequence[bool] = ()) -> None:
+        """``clock_hz``: the timers' input clock (one for all, or one per timer), as the
+        firmware's board configuration knows it; ``advanced``: which timers are TIM1/TIM8."""
         self.timers = tuple(timers)
         self.channels = tuple(channels)
-        self.clock_hz = clock_hz
+        n = len(self.timers)
+        self.clocks_hz = ((clock_hz,) * n if isinstance(clock_hz, int) else tuple(clock_hz))
+        self.advanced = tuple(advanced) or (False,) * n
+        if len(self.clocks_hz) != n or len(self.advanced) != n:
+            raise ValueError("one clock and one advanced flag per timer")
         self.armed = False
         self.rates_hz = [DEFAULT_RATE_HZ] * len(self.timers)
         self._ccr = [-1] * len(self.channels)  # last CCR written; -1 = unknown
@@ -57,7 +68,9 @@ class PwmServo:
         for group, tim in enumerate(self.timers):
             for reg in ("CR1", "CR2", "SMCR", "DIER", "CCER", "CCMR1", "CCMR2"):
                 tim.write_reg(reg, 0)
-            tim.write_reg("PSC", self.clock_hz // 1_000_000 - 1)
+            tim.write_reg("PSC", self.clocks_hz[group] // 1_000_000 - 1)
+            if self.advanced[group]:
+                tim.write_reg("BDTR", BDTR_MOE)
             self.set_rate(group, DEFAULT_RATE_HZ)
         for i, (group, ch) in enumerate(self.channels):
             tim = self.timers[group]
