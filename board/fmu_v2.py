@@ -76,9 +76,10 @@ TRUTH_KEYS = ("t_ns", "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag
               "pressure_pa", "temperature_c", "lat_deg", "lon_deg", "alt_m", "agl_m",
               "pos_ned_m", "vel_ned_m_s", "airspeed_m_s", "diff_pressure_pa", "battery_v",
               "battery_a")
-(_ACCEL, _GYRO, _MAG, _PRESSURE, _TEMPERATURE, _LAT, _LON, _ALT, _VEL) = (
+(_ACCEL, _GYRO, _MAG, _PRESSURE, _TEMPERATURE, _LAT, _LON, _ALT, _VEL, _DIFF_PRESSURE) = (
     TRUTH_KEYS.index(k) for k in ("accel_body_m_s2", "gyro_rad_s", "mag_body_gauss", "pressure_pa",
-                                  "temperature_c", "lat_deg", "lon_deg", "alt_m", "vel_ned_m_s"))
+                                  "temperature_c", "lat_deg", "lon_deg", "alt_m", "vel_ned_m_s",
+                                  "diff_pressure_pa"))
 
 # SPI clocks PX4 uses per device for register access (data reads switch faster themselves).
 _SPI_CLOCK = {"mpu6000": 1_000_000, "l3gd20": 11_000_000, "lsm303d": 11_000_000,
@@ -251,6 +252,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
     def _on_truth(self, t_ns: int, r: Any) -> None:
         self.env.set_truth(t_ns, r[_ACCEL], r[_GYRO], r[_MAG], r[_PRESSURE], r[_TEMPERATURE],
                            r[_LAT], r[_LON], r[_ALT], r[_VEL])
+        self.env.diff_pressure_pa = r[_DIFF_PRESSURE]   # the pitot's, for an airspeed sensor
 
     def _on_power(self, t_ns: int, record: Any) -> None:
         self._power_v, self._power_a = record

@@ -5,7 +5,9 @@ turns to noise, it drops off the bus (an SPI chip that no longer drives MISO rea
 chip stops ACKing), it stops raising data-ready, it saturates, or its output gains a bias step (the FMU board ramps
 it for a drift, ``FmuV2Board.ctl_sensor_drift``), or a memory stops taking writes; its output
 gains extra noise (``noise``), its FIFO overflows on every read (``fifo_overflow``), or its
-identity goes wrong at its next reset (``wrong_id_after_reset``).
+identity goes wrong at its next reset (``wrong_id_after_reset``); its results stop coming
+(``stale``), its diagnostics flag a fault (``diag_fault``), or its pressure port is blocked
+(``port_blocked``: the pitot tube iced or full of water, a crushed hose).
 The driver must notice what a PX4 driver would notice; the model never tells it.
 """
 
@@ -33,6 +35,15 @@ class FaultState:
     #: the identity register reads this value after the next reset or power-on (a part that
     #: comes back wrong from a reset); None: off
     wrong_id_after_reset: int | None = None
+    #: new results never become ready: the chip keeps answering its last data flagged stale
+    #: (MS4525DO status 2, a conversion that never completes)
+    stale: bool = False
+    #: the chip's own diagnostics report a fault (MS4525DO status 3: a broken bridge
+    #: connection, a corrupted calibration memory)
+    diag_fault: bool = False
+    #: a pressure port is blocked (pitot-static plumbing): "stuck" holds the pressure it had
+    #: when it blocked, "zero" equalises both sides of a differential sensor; "": clear
+    port_blocked: str = ""
 
     def clear(self) -> None:
         self.__init__()  # type: ignore[misc]

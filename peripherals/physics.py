@@ -3,8 +3,9 @@
 Sensor models never see the world directly; they read an :class:`Environment`, updated by the
 board from the truth records the orchestrator routes to it (or set by a test fixture that holds
 the board still or spins it). Values are SI at the model boundary: specific force in m/s^2 and
-rates in rad/s in the board's body frame (FRD), field in gauss, pressure in Pa, temperature in
-degC, position in degrees and metres, velocity NED in m/s.
+rates in rad/s in the board's body frame (FRD), field in gauss, pressure in Pa (static, and the
+pitot's differential pressure), temperature in degC, position in degrees and metres, velocity
+NED in m/s.
 
 Between two updates the value is held (zero-order hold): the world steps at 1 kHz and the
 sensors' own filters and data rates are modelled by the chips.
@@ -29,6 +30,7 @@ class Environment:
     mag_gauss: Vec3 = (0.21, 0.01, 0.43)   # earth field in body axes
     pressure_pa: float = 101_325.0
     temperature_c: float = 25.0            # air temperature (the chips add self-heating)
+    diff_pressure_pa: float = 0.0          # pitot minus static (dynamic pressure): airspeed sensors
     board_temperature_c: float = 35.0      # the FMU's temperature, what the sensors' dies see
     lat_deg: float = 47.397742
     lon_deg: float = 8.545594

@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 from firmware.platform.module import ModuleBase, ModuleError, UsageError
 
 __all__ = ["DriverModule", "Mpu6000Module", "L3gd20Module", "Lsm303dModule", "Ms5611Module",
-           "Hmc5883Module", "GpsModule", "MtdModule"]
+           "Hmc5883Module", "GpsModule", "MtdModule", "Ms4525AirspeedModule"]
 
 
 class DriverModule(ModuleBase):
@@ -199,6 +199,19 @@ class Hmc5883Module(DriverModule):
             bus_name, bus, external = ibus.name, ibus.number, ibus.external
         return Hmc5883Driver(platform, hw.i2c[bus_name].device(place.address), bus=bus,
                              external=external, self_test=bool(opts.get("T")))
+
+
+class Ms4525AirspeedModule(DriverModule):
+    NAME = "ms4525_airspeed"
+    DESCRIPTION = "TE MS4525DO airspeed sensor (differential pressure) on the external I2C"
+
+    @classmethod
+    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
+              params: Any) -> Any:
+        from firmware.drivers.airspeed.ms4525 import Ms4525Driver
+
+        return Ms4525Driver(platform, hw.i2c[place.bus].device(place.address),
+                            bus=place.bus_number, params=params)
 
 
 class GpsModule(DriverModule):

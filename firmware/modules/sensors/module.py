@@ -23,7 +23,8 @@ item run is the unit of cost:
   up to that time (250 Hz whatever the wake-up rate), as does ``vehicle_acceleration``;
   ``vehicle_angular_velocity`` is published after the run's last sample;
 * the selected barometer's and magnetometer's samples go to VehicleAirData and
-  VehicleMagnetometer;
+  VehicleMagnetometer; an airspeed sensor's ``differential_pressure`` goes to :class:`Airspeed`
+  (``airspeed``: airspeed.py), which advertises nothing on a board without one;
 * every 10 ms the voters look at every instance (timeout, frozen data, disagreement), select,
   fail over (``[sensors] gyro #0 failed, switching to #1`` in dmesg) and ``sensors_status_*``
   are published (every 100 ms and on a change).
@@ -39,6 +40,7 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
+from firmware.modules.sensors.airspeed import Airspeed
 from firmware.modules.sensors.calibration import Calibration, board_rotation
 from firmware.modules.sensors.params import N_ACCEL_CAL, N_BARO_CAL, N_GYRO_CAL, N_MAG_CAL, PARAMS
 from firmware.modules.sensors.vehicle_acceleration import VehicleAcceleration
@@ -88,7 +90,7 @@ class SensorsModule(WorkItemModule):
     NAME = "sensors"
     DESCRIPTION = ("Sensor hub: calibration, board rotation, redundancy voting and failover, "
                    "vehicle_angular_velocity, sensor_combined, vehicle_air_data, "
-                   "vehicle_magnetometer")
+                   "vehicle_magnetometer, airspeed")
     PARAMS = PARAMS
     WQ = "wq:INS0"
     #: modelled STM32F427 time of a run that handles one gyro sample (calibrate, filter,
@@ -98,6 +100,7 @@ class SensorsModule(WorkItemModule):
     COST_SAMPLE_NS = 8_000
     COST_COMBINED_NS = 30_000
     COST_CHECK_NS = 25_000
+    COST_AIRSPEED_NS = 15_000
 
     # -- start / stop ------------------------------------------------------------------------
 
@@ -145,6 +148,8 @@ class SensorsModule(WorkItemModule):
                             "mag": self.advertise("sensors_status_mag"),
                             "baro": self.advertise("sensors_status_baro")}
         self._m_status = orb.new("sensors_status_imu")
+        self.airspeed = Airspeed(self.subscribe, lambda topic: self.advertise(topic),
+                                 orb.new("airspeed"))
         self.perf_combined = self.perf_alloc("interval", "sensor_combined")
         self.perf_failover = self.perf_alloc("count", "failovers")
 
@@ -172,6 +177,7 @@ class SensorsModule(WorkItemModule):
         self.air_data.qnh_pa = float(get("SENS_BARO_QNH")) * 100.0
         self.air_data.interval_us = int(1_000_000 / float(get("SENS_BARO_RATE")))
         self.magnetometer.interval_us = int(1_000_000 / float(get("SENS_MAG_RATE")))
+        self.airspeed.set_params(get)
         self.angular_velocity.set_params(float(get("IMU_GYRO_CUTOFF")),
                                          float(get("IMU_DGYRO_CUTOFF")),
                                          float(get("IMU_GYRO_RATEMAX")))
@@ -250,6 +256,8 @@ class SensorsModule(WorkItemModule):
             self.magnetometer.add(x, y, z, msg.timestamp_sample)
         self.air_data.publish_if_due(now, self.baro.instances[self._baro_idx])
         self.magnetometer.publish_if_due(now, self.mag.instances[self._mag_idx])
+        if self.airspeed.update(now):
+            cost += self.COST_AIRSPEED_NS
         if now >= self._next_check:
             self._next_check = now + CHECK_INTERVAL_US
             self._check(now)
@@ -378,4 +386,6 @@ class SensorsModule(WorkItemModule):
         cb = self._gyro_cbs[self._gyro_idx]
         out.append(f"vehicle_angular_velocity: IMU_GYRO_RATEMAX {avel.ratemax_hz:.0f} Hz, "
                    f"every {cb.required_updates} samples, >= {avel.interval_us} us apart")
+        if self.airspeed.published:
+            out.append(self.airspeed.status_line())
         return out

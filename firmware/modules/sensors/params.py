@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Final
 
+from firmware.modules.sensors.airspeed import AIRSPEED_PARAMS
 from firmware.platform.params import ParamDef
 
 __all__ = ["N_ACCEL_CAL", "N_BARO_CAL", "N_GYRO_CAL", "N_MAG_CAL", "PARAMS", "PRIORITY_VALUES"]
@@ -145,5 +146,5 @@ def _build() -> tuple[ParamDef, ...]:
     return tuple(defs)
 
 
-#: Every parameter of the sensors module.
-PARAMS: Final[tuple[ParamDef, ...]] = _build()
+#: Every parameter of the sensors module (the airspeed part's are declared with it).
+PARAMS: Final[tuple[ParamDef, ...]] = _build() + AIRSPEED_PARAMS
