@@ -18,6 +18,7 @@ from firmware.modules.battery import BatteryStatusModule
 from firmware.modules.commander import CommanderModule
 from firmware.modules.commander.commands import CMD
 from firmware.modules.dataman import DatamanModule
+from firmware.modules.mavlink.module import MavlinkModule
 from firmware.modules.navigator import NavigatorModule
 from firmware.modules.rc_update import RcUpdateModule
 from firmware.modules.system_params import PARAMS as SYS_PARAMS
@@ -31,6 +32,8 @@ MANUAL, ALTCTL, POSCTL, MISSION, LOITER, RTL, DESCEND = 0, 1, 2, 3, 4, 5, 12
 STAB, TAKEOFF, LAND = 15, 17, 18
 HOME = (47.397742, 8.545594, 488.0)
 
+#: the mavlink module's MAV_TYPE, which the commander reads (the airframe sets it)
+MAV_TYPE_DEF = next(d for d in MavlinkModule.PARAMS if d.name == "MAV_TYPE")
 MODULES = {"commander": CommanderModule, "navigator": NavigatorModule,
            "dataman": DatamanModule, "rc_update": RcUpdateModule,
            "battery_status": BatteryStatusModule}
@@ -70,7 +73,7 @@ class Rig:
         self.kernel = Kernel("fmu")
         self.platform = Platform(self.kernel)
         self.orb = self.platform.orb
-        defs = list(SYS_PARAMS)
+        defs = list(SYS_PARAMS) + [MAV_TYPE_DEF]
         for cls in MODULES.values():
             defs += cls.PARAMS
         self.params = Params(self.platform, defs)

@@ -21,6 +21,22 @@ def test_heartbeat_px4_autopilot_quadrotor(session):
     assert hb.get_header().incompat_flags == 0 and hb.get_msgbuf()[0] == 0xFD  # MAVLink 2
 
 
+def test_heartbeat_type_follows_mav_type(session):
+    """The airframe's MAV_TYPE is what ground stations see (a plane: MAV_TYPE_FIXED_WING)."""
+    try:
+        session.shell("param set MAV_TYPE 1")
+        mark = session.gcs.mark()
+        session.gcs.step(1.1)
+        hbs = [m for m in session.gcs.messages("HEARTBEAT", mark) if m.get_srcSystem() == 1]
+        assert hbs and hbs[-1].type == mav.MAV_TYPE_FIXED_WING
+    finally:
+        session.shell("param set MAV_TYPE 2")
+    mark = session.gcs.mark()
+    session.gcs.step(1.1)
+    hbs = [m for m in session.gcs.messages("HEARTBEAT", mark) if m.get_srcSystem() == 1]
+    assert hbs and hbs[-1].type == mav.MAV_TYPE_QUADROTOR
+
+
 def test_heartbeats_at_1hz_of_virtual_time(session):
     gcs = session.gcs
     mark = gcs.mark()

@@ -12,6 +12,16 @@ time (``time_inside``) once reached, then the next item if ``autocontinue``. As 
 * after the last item the vehicle holds at it; the next activation after a finished mission
   starts again from item 0;
 * yaw: the item's yaw if set, else heading towards the item.
+
+On a fixed wing (PX4's navigator for planes): altitudes are reached within NAV_FW_ALT_RAD (see
+the navigator), waypoints within the larger of their radius and the L1 distance; a takeoff
+item (or the inserted climb) is a TAKEOFF setpoint at the item's position, or on the runway
+heading from where the plane stands if it has none, and is reached by altitude alone: the
+position controller climbs out on the runway heading, then the next item follows; loiter
+items are LOITER setpoints on the item's loiter radius (else NAV_LOITER_RAD), reached once
+within 1.2 times that radius; a land item is a LAND setpoint at the touchdown point at once
+(no flight there at the current altitude first: the previous waypoint and the touchdown point
+make the approach, which the position controller flies with its flare).
 """
 
 from __future__ import annotations
@@ -37,6 +47,7 @@ RTL: Final = 20
 LAND: Final = 21
 TAKEOFF: Final = 22
 _POSITION_ITEMS: Final = frozenset({WAYPOINT, LOITER_UNLIM, LOITER_TIME, LAND, TAKEOFF})
+_LOITER_ITEMS: Final = frozenset({LOITER_UNLIM, LOITER_TIME})
 CMD_RTL: Final = 20
 
 # work phases of one item
@@ -160,8 +171,27 @@ class MissionMode(NavMode):
         return item.altitude
 
     def _acc(self, item: Any) -> float:
-        return item.acceptance_radius if item.acceptance_radius > 0 else \
-            self.nav.p["NAV_ACC_RAD"]
+        r = item.acceptance_radius if item.acceptance_radius > 0 else self.nav.p["NAV_ACC_RAD"]
+        if self.nav.fixed_wing():
+            if item.nav_cmd in _LOITER_ITEMS:
+                r = 1.2 * self._loiter_radius(item)
+            return self.nav.acc_radius(r)
+        return r
+
+    def _loiter_radius(self, item: Any) -> float:
+        r = abs(float(item.loiter_radius))
+        return r if math.isfinite(r) and r > 0 else self.nav.loiter_radius()
+
+    def _takeoff_sp(self, item: Any | None, pos: tuple[float, float, float],
+                    alt: float) -> None:
+        """A plane's takeoff: the item's position if it has one, else where the plane
+        stands; yaw the runway heading (the item's yaw, else the current heading), which the
+        position controller holds until it is clear of the ground."""
+        nav = self.nav
+        has_pos = item is not None and (item.lat or item.lon) and math.isfinite(item.lat)
+        lat, lon = (item.lat, item.lon) if has_pos and item is not None else (pos[0], pos[1])
+        yaw = item.yaw if item is not None and math.isfinite(item.yaw) else nav.heading()
+        nav.set_current(SP_TAKEOFF, lat, lon, alt, yaw)
 
     def _yaw_to(self, item: Any, pos: tuple[float, float, float]) -> float:
         if math.isfinite(item.yaw):
@@ -194,12 +224,19 @@ class MissionMode(NavMode):
             self._start_item()
             return
         alt = self._abs_alt(item)
+        fw = nav.fixed_wing()
         if nav.landed() and cmd != TAKEOFF:
             h = nav.home_alt()
             climb = max(alt, (h if h is not None else pos[2]) + nav.p["MIS_TAKEOFF_ALT"])
             self.phase = P_TAKEOFF_FIRST
             self._climb_alt = climb
-            nav.set_current(SP_TAKEOFF, pos[0], pos[1], climb, nav.heading())
+            if fw:
+                self._takeoff_sp(None, pos, climb)
+            else:
+                nav.set_current(SP_TAKEOFF, pos[0], pos[1], climb, nav.heading())
+        elif cmd == TAKEOFF and fw:
+            self.phase = P_ITEM
+            self._takeoff_sp(item, pos, alt)
         elif cmd == TAKEOFF:
             self.phase = P_ITEM
             if nav.landed():
@@ -209,13 +246,20 @@ class MissionMode(NavMode):
         elif cmd == LAND:
             lat, lon = (item.lat, item.lon) if (item.lat or item.lon) else (pos[0], pos[1])
             self._land_at = (lat, lon, alt)
-            if distance_m(pos[0], pos[1], lat, lon) > self._acc(item):
+            if fw:   # the approach is the position controller's: land there at once
+                self.phase = P_LAND
+                nav.set_current(SP_LAND, lat, lon, alt, self._yaw_to(item, pos))
+            elif distance_m(pos[0], pos[1], lat, lon) > self._acc(item):
                 self.phase = P_MOVE_TO_LAND
                 nav.set_current(SP_POSITION, lat, lon, pos[2],
                                 bearing_rad(pos[0], pos[1], lat, lon), acc=self._acc(item))
             else:
                 self.phase = P_LAND
                 nav.set_current(SP_LAND, lat, lon, alt, self._yaw_or_heading(item))
+        elif fw and cmd in _LOITER_ITEMS:
+            self.phase = P_ITEM
+            nav.set_current(SP_LOITER, item.lat, item.lon, alt, self._yaw_to(item, pos),
+                            acc=self._acc(item), loiter_radius=self._loiter_radius(item))
         else:
             self.phase = P_ITEM
             sp_type = SP_LOITER if cmd == LOITER_UNLIM else SP_POSITION
@@ -246,7 +290,11 @@ class MissionMode(NavMode):
             return
         item = self.items[self.index]
         cur = nav.triplet.current
-        alt_ok = abs(pos[2] - cur.alt) <= nav.p["NAV_MC_ALT_RAD"]
+        fw = nav.fixed_wing()
+        alt_ok = abs(pos[2] - cur.alt) <= nav.alt_acc()
+        if fw and cur.type == SP_TAKEOFF:
+            # a plane's climbout: reached once high enough, wherever it has flown meanwhile
+            alt_ok = pos[2] >= cur.alt - nav.alt_acc()
         if self.phase == P_TAKEOFF_FIRST:
             if alt_ok and not nav.landed():
                 self._start_item()  # the inserted climb is done: now the item itself

@@ -39,7 +39,12 @@ class NavMode:
 
 class TakeoffMode(NavMode):
     """Climb vertically to MIS_TAKEOFF_ALT above home (or the NAV_TAKEOFF altitude), then
-    hold there and report ``mission_result.finished`` so the commander switches to Hold."""
+    hold there and report ``mission_result.finished`` so the commander switches to Hold.
+
+    A plane takes off in the direction it faces (PX4's fixed-wing Takeoff mode): the setpoint
+    is where it stands with the current heading as the runway heading, the climbout is done
+    once it is within NAV_FW_ALT_RAD below the target, and it then circles the takeoff point
+    (NAV_LOITER_RAD)."""
 
     name = "takeoff"
 
@@ -69,7 +74,9 @@ class TakeoffMode(NavMode):
         pos = nav.position()
         if pos is None or nav.landed():
             return
-        if abs(pos[2] - self.target_alt) <= nav.p["NAV_MC_ALT_RAD"]:
+        err = pos[2] - self.target_alt
+        reached = err >= -nav.alt_acc() if nav.fixed_wing() else abs(err) <= nav.alt_acc()
+        if reached:
             self.done = True
             cur = nav.triplet.current
             nav.set_current(SP_LOITER, cur.lat, cur.lon, cur.alt, cur.yaw, previous=False)

@@ -14,6 +14,13 @@ slot and item are active, the items are read from the running dataman's store.
 (MISSION_START param1). DO_CHANGE_SPEED is the navigator's own: it sets the cruise speed and
 acks it (``VEHICLE_COMMANDS``, so the commander leaves it alone). A mission's RTL item is passed
 to the commander as a command.
+
+Fixed wing (``vehicle_status.vehicle_type``, from the airframe's MAV_TYPE), as PX4's navigator:
+altitudes count as reached within NAV_FW_ALT_RAD (NAV_FW_ALTL_RAD for the waypoint before a
+landing) instead of NAV_MC_ALT_RAD; a waypoint within the larger of its acceptance radius and
+the L1 distance fw_pos_control_l1 reports in ``position_controller_status`` (a plane must turn
+before it gets there); every setpoint carries the loiter radius (NAV_LOITER_RAD) the position
+controller circles at. The modes' own differences are in their files.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from firmware.modules.navigator.geo import distance_m
 from firmware.modules.navigator.mission import MissionMode
 from firmware.modules.navigator.modes import (
     SP_IDLE,
+    SP_LAND,
     SP_LOITER,
     LandMode,
     LoiterMode,
@@ -49,6 +57,7 @@ NAV_LOITER: Final = 4
 NAV_RTL: Final = 5
 NAV_TAKEOFF: Final = 17
 NAV_LAND: Final = 18
+VEHICLE_TYPE_FIXED_WING: Final = 2
 POS_TIMEOUT_US: Final = 1_000_000
 REPUBLISH_US: Final = 1_000_000
 CMD_TAKEOFF: Final = 22
@@ -84,6 +93,9 @@ class NavigatorModule(WorkItemModule):
         self._sub_mission = self.subscribe("mission")
         self._sub_cmd = self.subscribe("vehicle_command")
         self._sub_param = self.subscribe("parameter_update")
+        # fw_pos_control_l1's acceptance radius (the L1 distance), when the build has the topic
+        self._sub_pcs = self.subscribe("position_controller_status") \
+            if "position_controller_status" in orb.registry.topics else None
         self._pub_triplet = self.advertise("position_setpoint_triplet")
         self._pub_result = self.advertise("mission_result")
         self._pub_cmd = self.advertise("vehicle_command")
@@ -135,14 +147,46 @@ class NavigatorModule(WorkItemModule):
         m = self._sub_land.node.last
         return True if m is None else bool(m.landed)
 
+    def fixed_wing(self) -> bool:
+        """The commander says the vehicle flies as a plane (MAV_TYPE 1, or a VTOL in FW)."""
+        st = self._sub_status.node.last
+        return st is not None and st.vehicle_type == VEHICLE_TYPE_FIXED_WING
+
+    def alt_acc(self) -> float:
+        """Altitude acceptance radius (PX4's get_altitude_acceptance_radius): NAV_MC_ALT_RAD,
+        on a plane NAV_FW_ALT_RAD, or NAV_FW_ALTL_RAD while the next setpoint is a landing."""
+        if not self.fixed_wing():
+            return self.p["NAV_MC_ALT_RAD"]
+        n = self.triplet.next
+        if n.valid and n.type == SP_LAND:
+            return self.p["NAV_FW_ALTL_RAD"]
+        return self.p["NAV_FW_ALT_RAD"]
+
+    def acc_radius(self, radius: float | None = None) -> float:
+        """Horizontal acceptance radius (PX4's get_acceptance_radius): ``radius`` (default
+        NAV_ACC_RAD), or the position controller's own when that is larger and newer than
+        the current setpoint (a plane's L1 distance)."""
+        r = self.p["NAV_ACC_RAD"] if radius is None or radius <= 0 else float(radius)
+        sub = self._sub_pcs
+        pcs = sub.node.last if sub is not None else None
+        if pcs is not None and pcs.timestamp > self.triplet.current.timestamp and \
+                math.isfinite(pcs.acceptance_radius) and pcs.acceptance_radius > r:
+            r = float(pcs.acceptance_radius)
+        return r
+
+    def loiter_radius(self) -> float:
+        return self.p["NAV_LOITER_RAD"]
+
     def is_at(self, lat: float, lon: float, alt: float) -> bool:
         pos = self.position()
-        return pos is not None and abs(pos[2] - alt) <= self.p["NAV_MC_ALT_RAD"] and \
-            distance_m(pos[0], pos[1], lat, lon) <= self.p["NAV_ACC_RAD"]
+        return pos is not None and abs(pos[2] - alt) <= self.alt_acc() and \
+            distance_m(pos[0], pos[1], lat, lon) <= self.acc_radius()
 
     def set_current(self, sp_type: int, lat: float, lon: float, alt: float, yaw: float,
-                    previous: bool = True, acc: float | None = None) -> None:
-        """New current setpoint; the old one becomes ``previous``; ``next`` is cleared."""
+                    previous: bool = True, acc: float | None = None,
+                    loiter_radius: float | None = None) -> None:
+        """New current setpoint; the old one becomes ``previous``; ``next`` is cleared. A
+        plane's setpoints carry the loiter radius (``loiter_radius``, else NAV_LOITER_RAD)."""
         t = self.triplet
         if previous and t.current.valid:
             copy_setpoint(t.previous, t.current)
@@ -156,6 +200,9 @@ class NavigatorModule(WorkItemModule):
         c.yaw_valid = math.isfinite(yaw)
         c.yaw = float(yaw) if c.yaw_valid else math.nan
         c.acceptance_radius = acc if acc is not None else self.p["NAV_ACC_RAD"]
+        if self.fixed_wing():
+            c.loiter_radius = loiter_radius if loiter_radius is not None and \
+                loiter_radius > 0 else self.p["NAV_LOITER_RAD"]
         c.cruising_speed = self.cruise_speed
         c.vx = c.vy = c.vz = 0.0
         t.next.valid = False
@@ -169,6 +216,8 @@ class NavigatorModule(WorkItemModule):
             n.timestamp = self.now_us
             n.valid = True
             n.type, n.lat, n.lon, n.alt = sp[0], float(sp[1]), float(sp[2]), float(sp[3])
+            if self.fixed_wing():
+                n.loiter_radius = self.p["NAV_LOITER_RAD"]
             n.yaw_valid = False
             n.yaw = math.nan
         self._dirty = True

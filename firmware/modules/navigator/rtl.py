@@ -11,6 +11,13 @@
 
 Without a home position it lands where it is; on the ground it does nothing.
 
+A fixed wing flies the same phases as PX4's RTL for planes: it climbs circling (NAV_LOITER_RAD)
+over where Return started, flies home, descends circling home on RTL_LOITER_RAD, waits there
+on the circle, and lands at home (its LAND setpoint's previous point is the loiter, from which
+the position controller makes its approach). Altitudes count as reached within NAV_FW_ALT_RAD,
+home within the L1 distance when that is larger than NAV_ACC_RAD. A negative RTL_LAND_DELAY
+keeps it circling home (PX4's default for planes without a landing site).
+
 The destination is PX4's RTL_TYPE 0 (the default, "return to the closest safe point"): home
 or, when a ground station uploaded rally points (dataman's rally list), whichever of home and
 the rally points is closest to where Return starts. The phases are the same over a rally
@@ -64,7 +71,7 @@ class RtlMode(NavMode):
         self._start = pos
         nav.info(f"Return: at {self.rtl_alt - home[2]:.0f} m above home, "
                  f"{dist:.0f} m away")
-        self._enter(CLIMB if pos[2] < self.rtl_alt - p["NAV_MC_ALT_RAD"] else RETURN)
+        self._enter(CLIMB if pos[2] < self.rtl_alt - nav.alt_acc() else RETURN)
 
     def _destination(self, pos: tuple[float, float, float],
                      home: tuple[float, float, float, float]
@@ -93,27 +100,37 @@ class RtlMode(NavMode):
             return
         lat, lon, alt, yaw = self.home
         pos = nav.position() or (lat, lon, alt)
+        fw = nav.fixed_wing()
         if state == CLIMB:
-            nav.set_current(SP_POSITION, self._start[0], self._start[1], self.rtl_alt,
-                            nav.heading())
+            nav.set_current(SP_LOITER if fw else SP_POSITION, self._start[0], self._start[1],
+                            self.rtl_alt, nav.heading())
         elif state == RETURN:
             yaw_home = bearing_rad(pos[0], pos[1], lat, lon) if distance_m(
                 pos[0], pos[1], lat, lon) > nav.p["NAV_ACC_RAD"] else nav.heading()
             nav.set_current(SP_POSITION, lat, lon, self.rtl_alt, yaw_home)
-            nav.set_next((SP_LAND, lat, lon, alt))
+            nav.set_next((SP_LOITER, lat, lon, self._loiter_alt()) if fw else
+                         (SP_LAND, lat, lon, alt))
         elif state == DESCEND:
             descend_alt = alt + nav.p["RTL_DESCEND_ALT"]
-            if self.rtl_alt <= descend_alt + nav.p["NAV_MC_ALT_RAD"]:
+            if self.rtl_alt <= descend_alt + nav.alt_acc():
                 self._enter(LOITER)
                 return
-            nav.set_current(SP_POSITION, lat, lon, descend_alt, yaw)
+            if fw:
+                nav.set_current(SP_LOITER, lat, lon, descend_alt, yaw,
+                                loiter_radius=nav.p["RTL_LOITER_RAD"])
+            else:
+                nav.set_current(SP_POSITION, lat, lon, descend_alt, yaw)
         elif state == LOITER:
             delay = nav.p["RTL_LAND_DELAY"]
             if delay == 0:
                 self._enter(LAND)
                 return
             self.loiter_since_us = nav.now_us
-            nav.set_current(SP_LOITER, lat, lon, pos[2], yaw)
+            if fw:
+                nav.set_current(SP_LOITER, lat, lon, self._loiter_alt(), yaw,
+                                loiter_radius=nav.p["RTL_LOITER_RAD"])
+            else:
+                nav.set_current(SP_LOITER, lat, lon, pos[2], yaw)
             if delay < 0:
                 nav.info("Return: hovering over home (RTL_LAND_DELAY < 0)")
         elif state == LAND:
@@ -123,6 +140,13 @@ class RtlMode(NavMode):
                 nav.set_current(SP_LAND, lat, lon, alt, yaw)
                 nav.info("Return: landing at home" if self.rally_index < 0 else
                          f"Return: landing at rally point {self.rally_index}")
+
+    def _loiter_alt(self) -> float:
+        """Where a plane circles home: RTL_DESCEND_ALT above it, or the return altitude if
+        that is already no higher (no descent then)."""
+        descend_alt = self.home[2] + self.nav.p["RTL_DESCEND_ALT"]
+        return self.rtl_alt if self.rtl_alt <= descend_alt + self.nav.alt_acc() else \
+            descend_alt
 
     def on_active(self) -> None:
         nav = self.nav
@@ -140,11 +164,11 @@ class RtlMode(NavMode):
             return
         cur = nav.triplet.current
         p = nav.p
-        alt_ok = abs(pos[2] - cur.alt) <= p["NAV_MC_ALT_RAD"]
+        alt_ok = abs(pos[2] - cur.alt) <= nav.alt_acc()
         if state == CLIMB and alt_ok:
             self._enter(RETURN)
         elif state == RETURN and alt_ok and \
-                distance_m(pos[0], pos[1], cur.lat, cur.lon) <= p["NAV_ACC_RAD"]:
+                distance_m(pos[0], pos[1], cur.lat, cur.lon) <= nav.acc_radius():
             self._enter(DESCEND)
         elif state == DESCEND and alt_ok:
             self._enter(LOITER)
