@@ -75,7 +75,7 @@ BOOT_TO_SENSORS_NS = 300_000_000
 TRUTH_KEYS = ("t_ns", "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag_body_gauss",
               "pressure_pa", "temperature_c", "lat_deg", "lon_deg", "alt_m", "agl_m",
               "pos_ned_m", "vel_ned_m_s", "airspeed_m_s", "diff_pressure_pa", "battery_v",
-              "battery_a")
+              "battery_a", "aoa_rad", "sideslip_rad")
 (_ACCEL, _GYRO, _MAG, _PRESSURE, _TEMPERATURE, _LAT, _LON, _ALT, _VEL, _DIFF_PRESSURE) = (
     TRUTH_KEYS.index(k) for k in ("accel_body_m_s2", "gyro_rad_s", "mag_body_gauss", "pressure_pa",
                                   "temperature_c", "lat_deg", "lon_deg", "alt_m", "vel_ned_m_s",

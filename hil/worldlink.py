@@ -2,7 +2,9 @@
 
 Outputs: ``truth`` (every world step, the physical quantities at the FMU's sensors as a plain
 tuple in :data:`TRUTH_FIELDS` order) and ``battery`` (voltage, current). Inputs: ``esc1`` ..
-``esc8`` (PWM pulse width and period from the IO's timer outputs).
+``esc8`` (PWM pulse width and period from the IO's MAIN outputs; world channels 0..7) and
+``aux1`` .. ``aux6`` (the FMU's AUX outputs; world channels 8..13). What a channel drives (an
+ESC and motor, a servo, nothing) is the airframe's data (``hil.world.fdm.Airframe.outputs``).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from operator import attrgetter
 from typing import Any
 
 from hil.world import World
+from hil.world.fdm import N_MAIN
 from hil.world.truth import Truth
 
 __all__ = ["WorldPorts", "TRUTH_FIELDS", "truth_record", "truth_from_record"]
@@ -31,7 +34,8 @@ def truth_from_record(record: tuple) -> Truth:
 class WorldPorts:
     """Wraps a :class:`World` with the port interface the orchestrator routes through."""
 
-    ports = ("truth", "battery", *(f"esc{i}" for i in range(1, 9)))
+    ports = ("truth", "battery", *(f"esc{i}" for i in range(1, 9)),
+             *(f"aux{i}" for i in range(1, 7)))
 
     def __init__(self, world: World | None = None, truth_every_steps: int = 1, **kwargs: Any
                  ) -> None:
@@ -71,5 +75,8 @@ class WorldPorts:
         if port.startswith("esc"):
             high_ns, period_ns = payload
             self.world.set_pwm(int(port[3:]) - 1, t_ns, high_ns, period_ns)
+        elif port.startswith("aux") and port in self.ports:
+            high_ns, period_ns = payload
+            self.world.set_pwm(N_MAIN + int(port[3:]) - 1, t_ns, high_ns, period_ns)
         else:
             raise ValueError(f"world has no input port {port!r}")

@@ -50,6 +50,10 @@ class Truth:
     diff_pressure_pa: float  # dynamic pressure (what a pitot-static sensor measures)
     battery_v: float
     battery_a: float
+    # appended last (issue 23), so older records' field indices stay valid; defaults for
+    # truth sources without a wing (calibration jig)
+    aoa_rad: float = 0.0  # angle of attack, atan2(w, u) of the air-relative body velocity
+    sideslip_rad: float = 0.0  # sideslip, asin(v / airspeed), positive: wind from the right
 
 
 def quat_from_euler(roll: float, pitch: float, yaw: float) -> Quat:

@@ -4,6 +4,8 @@ The world owns an integer clock ``t_ns = steps * dt_ns`` (JSBSim's float time is
 it). One ``step()``:
 
 1. every ESC applies the PWM inputs stamped at or before ``t_ns`` and runs its timers and lag;
+   every servo input (hil/world/servo.py) applies its pulses and hands its position command to
+   the model's servo actuator (lag and rate limit inside JSBSim);
 2. each motor gets the ESC throttle times battery voltage (as a fraction of the JSBSim motor's
    rated voltage), so the motors weaken as the pack sags;
 3. JSBSim advances dt;
@@ -25,7 +27,8 @@ import numpy as np
 
 from .battery import Battery, BatteryParams
 from .esc import Esc, EscParams
-from .fdm import AIRFRAMES, FT, PSF_PA, Fdm
+from .fdm import AIRFRAMES, FT, N_CHANNELS, N_MAIN, PSF_PA, Fdm, Servo
+from .servo import ServoInput
 from .magnetic import earth_field_ned_gauss
 from .truth import Truth
 
@@ -33,7 +36,7 @@ __all__ = ["World", "PX4_HOME"]
 
 PX4_HOME = (47.397742, 8.545594, 488.0)  # lat deg, lon deg, ground altitude m AMSL
 
-N_PWM_CHANNELS = 8
+N_PWM_CHANNELS = N_MAIN  # MAIN1..8 (set_motor_pwm_us); AUX1..6 are world channels 8..13
 #: current of a motor spinning without its propeller at full throttle (the E305's no-load
 #: current at 11 V is about 0.5 A; a larger figure covers the ESC's own losses)
 NOLOAD_CURRENT_A = 0.7
@@ -59,6 +62,8 @@ class World:
         alt_m: float = PX4_HOME[2],
         heading_deg: float = 0.0,
         agl_m: float = 0.0,
+        airspeed_m_s: float = 0.0,
+        pitch_deg: float = 0.0,
         rng: np.random.Generator | None = None,
         esc_params: EscParams | None = None,
         battery_params: BatteryParams | None = None,
@@ -68,6 +73,9 @@ class World:
 
         alt_m is the ground altitude AMSL at the start point; agl_m is the height of the landing
         gear above it (0: resting on the ground, motors off). heading_deg: 0 is north.
+        airspeed_m_s: initial horizontal speed along the heading (a plane started in the air);
+        pitch_deg: initial pitch, which is then also the initial angle of attack.
+        battery_params: the airframe's pack (``Airframe.battery``) unless given.
         """
         if rate_hz <= 0 or 1_000_000_000 % rate_hz:
             raise ValueError("rate_hz must divide 1e9 (integer-ns step), e.g. 250, 400, 1000")
@@ -84,11 +92,27 @@ class World:
         self.steps = 0
         self.rng = rng if rng is not None else np.random.default_rng(seed)
 
-        self.fdm = Fdm(af, self.dt_s, lat_deg, lon_deg, alt_m, heading_deg, agl_m, seed)
-        self.escs = [Esc(self.dt_ns, esc_params) for _ in range(N_PWM_CHANNELS)]
-        self.battery = Battery(battery_params, self.dt_s)
+        self.fdm = Fdm(af, self.dt_s, lat_deg, lon_deg, alt_m, heading_deg, agl_m, seed,
+                       airspeed_m_s=airspeed_m_s, pitch_deg=pitch_deg)
+        #: the receiver on each world channel (MAIN1..8, AUX1..6): an :class:`Esc` for a motor
+        #: (and for a channel wired to nothing, kept for inspection), a :class:`ServoInput`
+        #: for a servo
+        self.escs: list[Esc | ServoInput] = [
+            ServoInput() if isinstance(out, Servo) else Esc(self.dt_ns, esc_params)
+            for out in af.outputs
+        ]
+        assert len(self.escs) == N_CHANNELS
+        self.channels = self.escs
+        self.battery = Battery(battery_params or af.battery, self.dt_s)
         self._bp = self.battery.params
-        self._esc_updates = tuple(e.update for e in self.escs[: af.n_motors])
+        self._motor_ch = af.motor_channels
+        self._esc_updates = tuple(self.escs[ch].update for ch in self._motor_ch)
+        setters = self.fdm.servo_setters
+        self._servo_ch = af.servo_channels
+        self._servo_updates = tuple(self.escs[ch].update for ch in self._servo_ch)
+        self._servo_set = tuple(setters[ch] for ch in self._servo_ch)
+        self._servo_cmd = [0.0] * len(self._servo_ch)
+        self._stepped = frozenset(self._motor_ch + self._servo_ch)
         self._throttle_set = self.fdm.throttle_setters
         self._current_get = self.fdm.current_getters
         self._vmax = af.motor_max_volts
@@ -134,11 +158,12 @@ class World:
 
         high_ns = 0 is a line held low (no pulses, e.g. a dead IO). Inputs stamped in the past
         apply at the next step; inputs stamped ahead apply at the first step at or after them.
-        Channels beyond the airframe's motors are kept (for inspection) but drive nothing.
+        Channels the airframe does not use are kept (for inspection) but drive nothing.
+        Channels 0..7 are MAIN1..8, 8..13 AUX1..6.
         """
         esc = self.escs[ch]
         esc.set_signal(t_ns, high_ns, period_ns)
-        if ch >= self.airframe.n_motors:
+        if ch not in self._stepped:
             esc.update(self.t_ns)  # not stepped by step(): drain what is due
 
     def set_motor_pwm_us(
@@ -154,6 +179,9 @@ class World:
     # -- stepping -------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
+        if self._servo_ch:
+            self._step_with_servos(n)
+            return
         updates = self._esc_updates
         setters = self._throttle_set
         currents = self._current_get
@@ -188,6 +216,51 @@ class World:
             self.t_ns = t + dt_ns
             self.steps += 1
 
+    def _step_with_servos(self, n: int) -> None:
+        """:meth:`step` for an airframe with servos (kept apart so that a multicopter's loop
+        does not pay for them)."""
+        s_updates = self._servo_updates
+        s_set = self._servo_set
+        s_cmd = self._servo_cmd
+        ns = len(s_updates)
+        updates = self._esc_updates
+        setters = self._throttle_set
+        currents = self._current_get
+        jsb = self._jsb_throttle
+        battery = self.battery
+        bstep = battery.step
+        run = self.fdm.run
+        vmax = self._vmax
+        k_power = vmax / self._bp.esc_efficiency
+        i_avionics = self._bp.avionics_a
+        dt_ns = self.dt_ns
+        nm = len(updates)
+        for _ in range(n):
+            t = self.t_ns
+            for i in range(ns):
+                c = s_updates[i](t)
+                if c != s_cmd[i]:
+                    s_cmd[i] = c
+                    s_set[i](c)
+            scale = battery.voltage_v / vmax
+            for i in range(nm):
+                u = updates[i](t) * scale
+                if u > 1.0:
+                    u = 1.0
+                if u != jsb[i]:
+                    jsb[i] = u
+                    setters[i](u)
+            run()
+            p = 0.0
+            for i in range(nm):
+                im = currents[i]()
+                if im > 0.0:
+                    p += jsb[i] * im
+            v = battery.voltage_v
+            bstep(i_avionics + self._extra_a + (p * k_power / v if v > 0.5 else 0.0))
+            self.t_ns = t + dt_ns
+            self.steps += 1
+
     def run_until(self, t_ns: int) -> None:
         """Step while a whole step fits before t_ns (lockstep quantum end)."""
         n = (t_ns - self.t_ns) // self.dt_ns
@@ -200,7 +273,7 @@ class World:
         if self._truth_step == self.steps and self._truth_cache is not None:
             return self._truth_cache
         (ax, ay, az, p, q, r, roll, pitch, yaw, lat, lon, h_ft, agl_ft, vn, ve, vd,
-         p_psf, t_r, vt_fps, qbar_psf) = [g() for g in self._truth_getters]
+         p_psf, t_r, vt_fps, qbar_psf, aoa, beta) = [g() for g in self._truth_getters]
         if yaw > math.pi:  # JSBSim gives [0, 2 pi); PX4 uses (-pi, pi]
             yaw -= _TWO_PI
         alt = h_ft * FT
@@ -251,6 +324,8 @@ class World:
             qbar_psf * PSF_PA,
             self.battery.voltage_v,
             self.battery.current_a,
+            aoa,
+            beta,
         )
         self._truth_cache = tr
         self._truth_step = self.steps
@@ -285,7 +360,7 @@ class World:
             raise ValueError(f"motor failure kind must be 'motor' or 'propeller', got {kind!r}")
         if not 0.0 <= thrust_fraction < 1.0:
             raise ValueError(f"thrust_fraction must be in [0, 1), got {thrust_fraction!r}")
-        esc_update = self.escs[i].update
+        esc_update = self.escs[self._motor_ch[i]].update
         updates = list(self._esc_updates)
         if kind == "propeller":
             free = self._freewheel_a
@@ -311,7 +386,7 @@ class World:
         """Undo :meth:`fail_motor` (a motor that was only stalled, a loose connector)."""
         i = self._motor_index(i)
         updates = list(self._esc_updates)
-        updates[i] = self.escs[i].update
+        updates[i] = self.escs[self._motor_ch[i]].update
         self._esc_updates = tuple(updates)
         self.motor_faults.pop(i, None)
         self._freewheel_a[i] = 0.0
