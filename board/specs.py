@@ -25,7 +25,7 @@ from typing import Any, Union
 
 __all__ = ["SpecError", "SpiDevice", "SpiBusSpec", "I2cDevice", "I2cBusSpec", "UartSpec",
            "AdcChannel", "PwmOutput", "CanSpec", "BoardSpecData", "DevicePlace", "DriverStart",
-           "FMU_V2", "FMU_V2_OPTIONAL", "IO_V2", "MS4525DO_AIRSPEED", "MODELS", "DRIVERS",
+           "FMU_V2", "IO_V2", "MS4525DO_AIRSPEED", "MODELS", "DRIVERS",
            "STAGES", "SENSOR_STAGES", "model_class"]
 
 _PIN = re.compile(r"^P[A-K]\d{1,2}$")
@@ -490,15 +490,11 @@ FMU_V2 = BoardSpecData(
 
 #: The airspeed sensor of a fixed-wing's FMU: a TE MS4525DO (+-1 psi, output type A) at 0x28 on the
 #: external I2C connector, as the Pixhawk airspeed kits plug in. Not on the standard board (a
-#: quadrotor has none): ``FMU_V2.with_device("I2C1", MS4525DO_AIRSPEED)`` is the variant.
+#: quadrotor has none): ``FMU_V2.with_device("I2C1", MS4525DO_AIRSPEED)`` is the variant (a
+#: plane's airframe adds it: ``hil.airframes.FMU_EXTRA_DEVICES``).
 MS4525DO_AIRSPEED = I2cDevice("ms4525", "ms4525do", 0x28, external=True,
                               about="airspeed sensor (differential pressure) on the external I2C",
                               driver="ms4525_airspeed")
-
-#: Devices an FMUv2 may carry beyond the stock set, by device name -> (bus, entry): what an
-#: airframe's extra devices (``hil.airframes.HostAirframe.fmu_devices``) are looked up in, as
-#: ``FMU_V2.with_device(*FMU_V2_OPTIONAL["ms4525"])``.
-FMU_V2_OPTIONAL: dict[str, tuple[str, I2cDevice]] = {"ms4525": ("I2C1", MS4525DO_AIRSPEED)}
 
 
 #: Pixhawk 1 IO coprocessor (PX4 io-v2): facts from ../shared/reference/io-and-rc.md 3.1, 8.1.

@@ -35,7 +35,12 @@ SENSOR_MODELS: dict[str, tuple[tuple[str, ...], bool]] = {
     "lsm303d": (("accel", "mag"), True),
     "ms5611": (("pressure",), False),   # no data-ready: the driver times its conversions
     "hmc5883": (("mag",), True),
+    "ms4525do": (("pressure",), False),  # airspeed: polled after a measurement request
 }
+#: sensor models without an identity register (nothing for ``sensor.wrong_id`` to change)
+NO_IDENTITY: frozenset[str] = frozenset({"ms4525do"})
+#: airspeed (differential pressure) sensor models: the ``airspeed.*`` kinds' targets
+AIRSPEED_MODELS: frozenset[str] = frozenset({"ms4525do"})
 
 
 def sensor_models(spec: BoardSpecData) -> dict[str, str]:
@@ -50,6 +55,14 @@ def sensor_targets(spec: BoardSpecData) -> tuple[str, ...]:
 
 def drdy_targets(spec: BoardSpecData) -> tuple[str, ...]:
     return tuple(n for n, m in sensor_models(spec).items() if SENSOR_MODELS[m][1])
+
+
+def identity_targets(spec: BoardSpecData) -> tuple[str, ...]:
+    return tuple(n for n, m in sensor_models(spec).items() if m not in NO_IDENTITY)
+
+
+def airspeed_targets(spec: BoardSpecData) -> tuple[str, ...]:
+    return tuple(n for n, m in sensor_models(spec).items() if m in AIRSPEED_MODELS)
 
 
 def mpu6000_targets(spec: BoardSpecData) -> tuple[str, ...]:
@@ -108,12 +121,13 @@ _field("sensor.wrong_id", "wrong_id",
        "identity when it (re)initialises the chip and periodically with its other "
        "registers: it finds the mismatch, resets, and gives the sensor up when the "
        "reset keeps failing. ``value`` is what the identity register reads.",
-       on=lambda p: int(p["value"]), off=None, value=0x00)
+       on=lambda p: int(p["value"]), off=None, targets=identity_targets, value=0x00)
 _field("sensor.bias_step", "bias_step",
        "A step in the sensor's offset (a shock that shifts a MEMS proof mass, a "
        "temperature jump, a magnetised part near the compass), in SI units on the "
        "chip's axes: rad/s for a gyro, m/s^2 for an accel, gauss for a magnetometer, "
-       "pascal on x (and kelvin on y, the die temperature) for the barometer. The readings stay "
+       "pascal on x (and kelvin on y, the die temperature) for the barometer and the airspeed "
+       "sensor (its differential pressure). The readings stay "
        "plausible, so the drivers cannot see it; only the voter's inconsistency between "
        "redundant sensors and the estimator's innovations can.",
        on=lambda p: (float(p["x"]), float(p["y"]), float(p["z"])), off=(0.0, 0.0, 0.0),
@@ -180,3 +194,31 @@ switch_kind("sensor.noise_burst", _noise_burst, level="sensor", targets=SENSORS,
                 "inconsistent' at COM_ARM_IMU_ACC refuses arming) and the estimator's "
                 "innovations widen. A burst shorter than the voter's one-second persistence "
                 "causes no failover.")
+
+
+def _pitot_mode(p: dict[str, Any]) -> str:
+    mode = p["mode"]
+    if mode not in ("stuck", "zero"):
+        raise FaultError(f"fault airspeed.pitot_blocked: mode must be 'stuck' or 'zero', "
+                         f"got {mode!r}")
+    return str(mode)
+
+
+_field("airspeed.pitot_blocked", "port_blocked",
+       "The pitot tube is blocked (ice, water, an insect, the cover left on) while the sensor "
+       "works. mode 'stuck': the ram port and the drain are both blocked, so the pressure "
+       "trapped at that moment stays, and the airspeed reads what it was whatever the vehicle "
+       "does; mode 'zero': the ram port is blocked but the drain lets the tube settle to static "
+       "pressure, so the airspeed reads about zero. The chip still converts with its noise, so "
+       "the driver sees nothing; the sensors module's consistency check (ground speed above "
+       "the true airspeed by more than ASPD_FS_INNOV for ASPD_FS_T_STOP while moving faster "
+       "than ASPD_STALL) sets the airspeed's confidence to 0, which a zero reading in cruise "
+       "trips within seconds and a stuck one only once the vehicle speeds up.",
+       on=_pitot_mode, off="", targets=airspeed_targets, mode="zero")
+_field("airspeed.stale", "stale",
+       "The airspeed sensor answers its bus but its conversions never complete (a hung "
+       "conditioning ASIC): every data fetch returns the last result with the MS4525DO's "
+       "status 2, 'stale data that has been already fetched'. PX4's ms4525_airspeed driver "
+       "counts each as an error and restarts its measure/collect cycle; nothing is published, "
+       "so the sensors module's airspeed times out after 300 ms and goes out with confidence "
+       "0 until the conversions come back.", targets=airspeed_targets)

@@ -38,6 +38,7 @@ DEFAULT: Final = _t(
     ("battery_status", 5),
     ("commander_state", 0),
     ("cpuload", 0),
+    ("differential_pressure", 10),  # an airspeed sensor's (a plane's FMU); absent elsewhere
     ("esc_status", 4),            # PX4: every 250 ms; only ESC drivers that report publish it
     ("estimator_status", 5),
     ("home_position", 0),
