@@ -291,6 +291,7 @@ STACK_MODULES: Final[dict[str, str]] = {
     "mc_att_control": "firmware.modules.mc_att_control:McAttControlModule",
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
     "navigator": "firmware.modules.navigator:NavigatorModule",
+    "vtol_att_control": "firmware.modules.vtol_att_control:VtolAttControlModule",
     "land_detector": "firmware.modules.land_detector:LandDetectorModule",
     "uavcan": "firmware.drivers.uavcan:UavcanModule",
     "failure_injector": "firmware.modules.failure_injector:FailureInjectorModule",
