@@ -182,6 +182,9 @@ class Fdm:
         root = jsbsim.get_default_root_dir()
         fdm = jsbsim.FGFDMExec(root)
         fdm.set_debug_level(0)
+        # dt before the model: the flight-control components (servo lags, rate limits) take
+        # their time step when they are built
+        fdm.set_dt(dt_s)
         ok = fdm.load_model_with_paths(
             airframe.model,
             str(MODELS_DIR / "aircraft"),
@@ -192,7 +195,6 @@ class Fdm:
         if not ok:
             raise RuntimeError(f"JSBSim could not load model {airframe.model!r}")
         self.exec = fdm
-        fdm.set_dt(dt_s)
         fdm["simulation/randomseed"] = float(seed % (1 << 31))
         # Start with the gear compressed by the static load, so that a vehicle on the ground
         # starts at rest instead of dropping onto its springs.
