@@ -183,9 +183,13 @@ class Tecs:
         # height demand: followed at most at the climb/sink limits
         prev = self.hgt_sp_adj
         self.hgt_sp_adj = _clamp(hgt_sp_m, prev - p.sink_max_m_s * dt, prev + p.climb_max_m_s * dt)
+        # never further ahead of the aircraft than one time constant at the rate limits: a
+        # demand the aircraft cannot follow must not build up an energy error it cannot fly
+        tc_h = alt_tc_s if alt_tc_s is not None else p.alt_error_tc_s
+        self.hgt_sp_adj = _clamp(self.hgt_sp_adj, altitude_m - p.sink_max_m_s * tc_h,
+                                 altitude_m + p.climb_max_m_s * tc_h)
         ramp_rate = (self.hgt_sp_adj - prev) / dt
-        tc = alt_tc_s if alt_tc_s is not None else p.alt_error_tc_s
-        hgt_rate_sp = _clamp((self.hgt_sp_adj - altitude_m) / max(tc, 0.1)
+        hgt_rate_sp = _clamp((self.hgt_sp_adj - altitude_m) / max(tc_h, 0.1)
                              + p.hgt_rate_ff * ramp_rate, -p.sink_max_m_s, p.climb_max_m_s)
 
         # underspeed: not enough energy to keep flying at any pitch

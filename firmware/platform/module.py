@@ -290,6 +290,8 @@ STACK_MODULES: Final[dict[str, str]] = {
     "mc_rate_control": "firmware.modules.mc_rate_control:McRateControlModule",
     "mc_att_control": "firmware.modules.mc_att_control:McAttControlModule",
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
+    "fw_att_control": "firmware.modules.fw_att_control:FwAttControlModule",
+    "fw_pos_control_l1": "firmware.modules.fw_pos_control_l1:FwPosControlL1Module",
     "navigator": "firmware.modules.navigator:NavigatorModule",
     "vtol_att_control": "firmware.modules.vtol_att_control:VtolAttControlModule",
     "land_detector": "firmware.modules.land_detector:LandDetectorModule",
