@@ -28,7 +28,14 @@ FW_MODULES = {
 
 #: the gains this package's closed-loop tests fly the StickPlane with (the values for the
 #: 2100 airframe file); everything else keeps PX4's defaults
-PLANE_PARAMS: dict[str, float] = {}
+PLANE_PARAMS: dict[str, float] = {
+    # StickPlane: 1 g stall at 10.3 m/s (StickPlane.xml); hil.world.trim: level at 16 m/s on
+    # throttle 0.57, pitch 3.9 deg
+    "FW_AIRSPD_MIN": 13.0, "FW_AIRSPD_TRIM": 16.0, "FW_AIRSPD_MAX": 24.0,
+    "FW_THR_CRUISE": 0.57,
+    # full throttle climbs at ~3.5 m/s at trim speed: PX4 wants the climb limit reachable
+    "FW_T_CLMB_MAX": 3.0,
+}
 
 AETR = (Path(__file__).resolve().parents[3] / "firmware" / "romfs" / "mixers"
         / "AETR.main.mix").read_text()

@@ -1,0 +1,156 @@
+"""fw_att_control and fw_pos_control_l1 on an in-process FMU flying the world's StickPlane
+(tests/firmware/fw/rig.py: truth estimator, airspeed stub, AETR mixer straight to the servos
+and ESC, stand-ins for the commander and navigator).
+
+What is asserted is what a PX4 user looks at: the modules start and stop from their command
+line and publish on their topics; the manual scales and limits are respected; in auto the
+plane climbs into a loiter and holds its radius, altitude and airspeed without nearing the stall;
+it flies on the trim airspeed when told to ignore the sensor; it takes off from the runway on
+its heading. Virtual flight time in this file: ~2 min (~6 s of CPU).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tests.firmware.fw.rig import PLANE_PARAMS, FwRig
+
+SP_LOITER, SP_TAKEOFF = 2, 3
+#: the StickPlane's stall angle of attack (hil/world/fdm.py Airframe.stall_aoa_rad)
+STALL_AOA_RAD = 0.2094
+
+
+def test_modules_start_stop_status_and_topics():
+    rig = FwRig(agl_m=100.0, airspeed_m_s=16.0)
+    mods = rig.system.modules
+    assert mods.is_running("fw_att_control") and mods.is_running("fw_pos_control_l1")
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(SP_LOITER, 300.0, 0.0, 0.0, loiter_radius=80.0)
+    rig.run(0.5)
+    for topic in ("actuator_controls_0", "vehicle_attitude_setpoint", "vehicle_rates_setpoint",
+                  "tecs_status", "position_controller_status"):
+        assert rig.topic(topic) is not None, topic
+    pcs = rig.topic("position_controller_status")
+    # the navigator's acceptance radius: the L1 distance, damping * period / pi * groundspeed
+    assert pcs.acceptance_radius == pytest.approx(0.75 * 20.0 / math.pi * 16.0, rel=0.1)
+    assert rig.topic("tecs_status").airspeed_valid
+    n = len(rig.system.console_lines)
+    assert mods.command("fw_pos_control_l1", ["status"]) == 0
+    out = "\n".join(rig.system.console_lines[n:])
+    assert "control auto" in out and "airspeed valid" in out
+    assert mods.command("fw_att_control", ["stop"]) == 0
+    assert not mods.is_running("fw_att_control")
+    count = rig.platform.orb.node("actuator_controls_0").publish_count
+    rig.run(0.1)
+    assert rig.platform.orb.node("actuator_controls_0").publish_count == count
+    assert mods.command("fw_att_control", ["start"]) == 0
+    rig.run(0.1)
+    assert rig.platform.orb.node("actuator_controls_0").publish_count > count
+
+
+def test_manual_passthrough_scales_and_stabilized_roll_limit():
+    rig = FwRig({"FW_MAN_R_SC": 0.5, "FW_MAN_P_SC": 0.8, "FW_MAN_R_MAX": 30.0},
+                agl_m=150.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("manual")
+    rig.set_sticks(roll=0.6, pitch=0.5, yaw=-0.4, throttle=0.2)
+    rig.run(0.05)
+    c = rig.topic("actuator_controls_0").control
+    assert c[0] == pytest.approx(0.3) and c[1] == pytest.approx(-0.4)   # stick fwd: nose down
+    assert c[2] == pytest.approx(-0.4) and c[3] == pytest.approx(0.6)
+    # stabilized: half roll stick is half of FW_MAN_R_MAX, held
+    rig.set_mode("stabilized")
+    rig.set_sticks(roll=0.5, throttle=0.2)
+    rig.run(4.0)
+    roll = rig.truth().euler_rad[0]
+    assert roll == pytest.approx(math.radians(15.0), abs=math.radians(3.0))
+    assert rig.topic("vehicle_attitude_setpoint").roll_body == pytest.approx(math.radians(15.0))
+
+
+@pytest.fixture(scope="module")
+def loiter_flight():
+    """Climb 30 m into a loiter 250 m ahead (radius 80 m), 70 s."""
+    rig = FwRig(agl_m=100.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(SP_LOITER, 250.0, 0.0, 30.0, loiter_radius=80.0)
+    rows: list[tuple[float, ...]] = []
+
+    def log(r: FwRig) -> None:
+        tr = r.truth()
+        n, e, h = r.local()
+        rows.append((tr.t_ns * 1e-9, n, e, h, tr.airspeed_m_s, tr.aoa_rad, tr.euler_rad[0]))
+
+    rig.run(70.0, log, every_n=100)
+    return rig, rows
+
+
+def test_loiter_holds_radius_altitude_and_airspeed(loiter_flight):
+    _rig, rows = loiter_flight
+    tail = [r for r in rows if r[0] > 45.0]
+    radii = [math.hypot(r[1] - 250.0, r[2]) for r in tail]
+    print(f"\nloiter: radius {min(radii):.1f}..{max(radii):.1f} m, altitude "
+          f"{min(r[3] for r in tail):.2f}..{max(r[3] for r in tail):.2f} m, airspeed "
+          f"{min(r[4] for r in tail):.2f}..{max(r[4] for r in tail):.2f} m/s")
+    assert max(abs(x - 80.0) for x in radii) < 3.0
+    assert max(abs(r[3] - 30.0) for r in tail) < 1.5
+    trim = PLANE_PARAMS["FW_AIRSPD_TRIM"]
+    assert max(abs(r[4] - trim) for r in tail) < 1.0
+    # clockwise (the default direction): banked right all the way round
+    assert min(r[6] for r in tail) > math.radians(10.0)
+
+
+def test_loiter_climb_never_nears_the_stall(loiter_flight):
+    _rig, rows = loiter_flight
+    assert max(r[5] for r in rows) < 0.6 * STALL_AOA_RAD
+    # the climb is flown at about FW_T_CLMB_MAX (3 m/s)
+    t10 = next(r[0] for r in rows if r[3] > 10.0)
+    t25 = next(r[0] for r in rows if r[3] > 25.0)
+    assert 15.0 / (t25 - t10) == pytest.approx(PLANE_PARAMS["FW_T_CLMB_MAX"], rel=0.35)
+
+
+def test_airspeed_less_mode_flies_on_trim():
+    rig = FwRig({"FW_ARSP_MODE": 1}, agl_m=100.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(0, 2000.0, 0.0, 0.0, prev=(0.0, 0.0, 0.0))
+    hs: list[float] = []
+    rig.run(25.0, lambda r: hs.append(r.local()[2]), every_n=100)
+    ts = rig.topic("tecs_status")
+    assert not ts.airspeed_valid and ts.true_airspeed_filtered == PLANE_PARAMS["FW_AIRSPD_TRIM"]
+    assert max(abs(h) for h in hs[50:]) < 4.0
+    assert 13.0 < rig.truth().airspeed_m_s < 20.0
+
+
+def test_runway_takeoff_holds_heading_and_climbs_out():
+    rig = FwRig({"RWTO_TKOFF": 1}, agl_m=0.0, airspeed_m_s=0.0)
+    rig.set_landed(True)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(SP_TAKEOFF, 0.0, 0.0, 30.0, yaw=0.0)
+    rows: list[tuple[float, ...]] = []
+
+    def log(r: FwRig) -> None:
+        tr = r.truth()
+        n, e, h = r.local()
+        if h > 2.0 and r.land_msg.landed:
+            r.set_landed(False)
+        rows.append((tr.t_ns * 1e-9, n, e, h, tr.airspeed_m_s, tr.aoa_rad, tr.agl_m))
+
+    rig.run(25.0, log, every_n=100)
+    liftoff = next(r for r in rows if r[6] > 0.5)
+    ground = [r for r in rows if r[0] < liftoff[0]]
+    print(f"\nrunway takeoff: lift-off at {liftoff[0]:.1f} s, {liftoff[1]:.0f} m down the "
+          f"runway at {liftoff[4]:.1f} m/s")
+    # no lift-off before the rotation speed, FW_AIRSPD_MIN * RWTO_AIRSPD_SCL
+    assert liftoff[4] > PLANE_PARAMS["FW_AIRSPD_MIN"] * 1.3 - 0.5
+    assert max(abs(r[2]) for r in ground) < 3.0            # on the runway's centre line
+    assert abs(rows[-1][3] - 30.0) < 3.0
+    assert max(r[5] for r in rows if r[4] > 8.0) < STALL_AOA_RAD
