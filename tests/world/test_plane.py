@@ -13,7 +13,7 @@ import pytest
 
 from hil.world import EscParams, World
 from hil.world.fdm import AIRFRAMES, FT, Fdm, Motor, Servo
-from hil.world.trim import TrimPoint, trim_level
+from hil.world.trim import TrimPoint, trim_climb, trim_level
 from hil.world.world import PX4_HOME
 
 CRUISE_M_S = 16.0
@@ -85,6 +85,15 @@ def test_slower_trim_needs_more_angle_of_attack(trim: TrimPoint) -> None:
         trim_level("plane", 8.0)  # below the 1 g stall speed (10.3 m/s)
     with pytest.raises(ValueError):
         trim_level("f450", 10.0)
+
+
+def test_full_throttle_climbs_and_idle_glides(trim: TrimPoint) -> None:
+    climb = trim_climb("plane", CRUISE_M_S, esc_throttle=1.0)
+    assert 4.0 < climb.climb_rate_m_s < 10.0  # 2.7 kg on ~23 N of static thrust
+    assert climb.battery_current_a > 3 * trim.battery_current_a
+    glide = trim_climb("plane", CRUISE_M_S, esc_throttle=0.0)
+    assert -3.0 < glide.climb_rate_m_s < -1.0  # L/D ~ 7 with a windmilling propeller
+    assert glide.pitch_deg < trim.pitch_deg
 
 
 def test_flies_straight_and_level_for_20_s_on_fixed_commands(trim, cruise) -> None:
