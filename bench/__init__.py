@@ -49,6 +49,8 @@ FIGURES: list[Figure] = [
            "the default flight (hil run): two board processes, world, GCS, whole mission", 7),
     Figure("flight_rtf_over_jsbsim", "bench_flight:bench_flight_rtf_over_jsbsim", "ratio",
            "flight_rtf over JSBSim's F450 alone, same run: comparable across machines", 20),
+    Figure("flight_rtf_fw", "bench_flight:bench_flight_rtf_fw", "x real time",
+           "the standard plane's default mission (hil run --airframe plane)", 23),
     Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
            "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]

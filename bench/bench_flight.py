@@ -5,7 +5,8 @@ the GCS, the whole mission. One run (it takes a minute or more); the figure is t
 (:func:`bench.bench_world.bench_rtf_jsbsim_only`), measured in the same process right after the
 flight. Both move together with the machine's speed, so the ratio says how much of the
 machine's pace the emulated boards cost, in a figure comparable across machines. The flight is
-flown once per process and shared by both figures.
+flown once per process and shared by both figures. ``flight_rtf_fw`` is the same for the
+standard plane's default mission (a longer flight: about five virtual minutes).
 """
 
 from __future__ import annotations
@@ -18,10 +19,16 @@ from hil.flight import FlightConfig, fly
 
 
 @functools.cache
-def _flight_rtf() -> float:
+def _flight_rtf(airframe: int = 4011) -> float:
     with tempfile.TemporaryDirectory() as out:
-        summary = fly(FlightConfig(out_dir=out, progress=False, plot=False))
+        summary = fly(FlightConfig(out_dir=out, airframe=airframe, progress=False, plot=False))
     return float(summary["rtf"])
+
+
+def bench_flight_rtf_fw() -> float:
+    """The standard plane's default mission (SYS_AUTOSTART 2100), as ``hil run --airframe
+    plane`` flies it."""
+    return _flight_rtf(2100)
 
 
 def bench_flight_rtf() -> float:

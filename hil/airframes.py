@@ -17,7 +17,8 @@ from typing import Any
 
 from firmware import romfs
 
-__all__ = ["AirframeInfo", "CLASSES", "HOST", "HostAirframe", "all_airframes", "resolve"]
+__all__ = ["AirframeInfo", "CLASSES", "FMU_EXTRA_DEVICES", "HOST", "HostAirframe",
+           "all_airframes", "fmu_spec", "resolve"]
 
 #: PX4's airframe ``@class`` -> the class ``hil airframes --json`` reports
 CLASSES: dict[str, str] = {"Copter": "multicopter", "Plane": "fixedwing", "VTOL": "vtol"}
@@ -34,6 +35,11 @@ class HostAirframe:
     #: other names ``--airframe`` accepts besides the id and the file's name
     aliases: tuple[str, ...] = ()
 
+
+#: devices an airframe may add to the FMU: name -> (bus, device entry of board.specs)
+FMU_EXTRA_DEVICES: dict[str, tuple[str, str]] = {
+    "ms4525": ("I2C1", "MS4525DO_AIRSPEED"),  # airspeed sensor on the external I2C
+}
 
 #: SYS_AUTOSTART -> host side. The generic quad flies the F450 model too (same motor order).
 HOST: dict[int, HostAirframe] = {
@@ -60,6 +66,17 @@ class AirframeInfo:
                 "fmu_devices": list(self.host.fmu_devices),
                 "outputs": {o: what for o, what in self.outputs},
                 "aliases": list(self.host.aliases)}
+
+
+def fmu_spec(host: HostAirframe) -> Any:
+    """The FMU board's spec for this airframe: the stock FMUv2 with the airframe's devices."""
+    from board import specs
+
+    spec = specs.FMU_V2
+    for name in host.fmu_devices:
+        bus, entry = FMU_EXTRA_DEVICES[name]
+        spec = spec.with_device(bus, getattr(specs, entry))
+    return spec
 
 
 def all_airframes() -> list[AirframeInfo]:

@@ -6,8 +6,9 @@ the airframe's class (``hil.airframes``) and checks what a PX4 user looks at aga
 ``waypoints`` (the plan's turn points, for track and acceptance checks) and ``touchdown_ne``.
 
 * multicopter: takeoff to 10 m, a square of four waypoints 20 m apart, return and land;
-* fixedwing: takeoff on the runway heading (north) climbing to 50 m, a square of four
-  waypoints 300 m apart, a loiter, then an approach from the north and a landing at home.
+* fixedwing: a runway takeoff northwards climbing to 50 m, a square of four waypoints 300 m
+  apart, a loiter south of home where the landing pattern starts, then a landing northwards
+  at home down PX4's 5 degree glide slope (50 m over ~570 m).
 """
 
 from __future__ import annotations
@@ -68,9 +69,11 @@ class DefaultMission:
 
 #: the quadrotor's square (metres north, east of home)
 SQUARE_NE = ((20.0, -10.0), (20.0, 10.0), (40.0, 10.0), (40.0, -10.0))
-#: the plane's square, 300 m sides, north of the runway
-FW_SQUARE_NE = ((450.0, -150.0), (450.0, 150.0), (750.0, 150.0), (750.0, -150.0))
+#: the plane's square, 300 m sides, north-east of the runway (flown clockwise)
+FW_SQUARE_NE = ((400.0, 0.0), (400.0, 300.0), (100.0, 300.0), (100.0, 0.0))
 FW_ALT_M = 50.0
+#: the loiter that starts the landing pattern, on the runway line south of home
+FW_LOITER_NE = (-600.0, 0.0)
 
 MISSIONS: dict[str, DefaultMission] = {
     "multicopter": DefaultMission(
@@ -82,14 +85,12 @@ MISSIONS: dict[str, DefaultMission] = {
         description="takeoff, 4 waypoints, return"),
     "fixedwing": DefaultMission(
         "fixed-wing circuit", FW_ALT_M,
-        (Item(NAV_TAKEOFF, 250.0, 0.0, FW_ALT_M, param1=10.0),
+        (Item(NAV_TAKEOFF, 300.0, 0.0, FW_ALT_M, param1=10.0),
          *(Item(NAV_WAYPOINT, n, e, FW_ALT_M) for n, e in FW_SQUARE_NE),
-         Item(NAV_LOITER_TIME, 450.0, 0.0, FW_ALT_M, param1=30.0),
-         # the approach: north of home on the runway line, then down the glide slope southwards
-         Item(NAV_WAYPOINT, 400.0, 0.0, 30.0),
+         Item(NAV_LOITER_TIME, *FW_LOITER_NE, FW_ALT_M, param1=20.0),
          Item(NAV_LAND, 0.0, 0.0, 0.0)),
         FW_SQUARE_NE,
-        description="takeoff to 50 m, 4 waypoints 300 m apart, loiter, approach, land"),
+        description="takeoff to 50 m, 4 waypoints 300 m apart, loiter, return and land"),
 }
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from board.wiring import CAN_ESC_NODES, PIXHAWK1, WORLD, Wire, uart_link, with_can_escs
+from hil.airframes import HOST, fmu_spec
 from hil.devices import DeviceHub
 from hil.orchestrator import BoardSpec, Orchestrator
 from hil.rc import RcRig, Transmitter
@@ -112,9 +113,14 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
     can_hosts = tuple(dict.fromkeys((*cfg.can_hosts, *cfg.can_bind)))
     if can_hosts:
         fmu_kwargs["host_ports"] = can_hosts
+    # The airframe's host side: the world's JSBSim model and the FMU's extra devices (an
+    # airframe id without an entry keeps the F450 and the stock board, e.g. SYS_AUTOSTART 0).
+    host = HOST.get(cfg.airframe)
+    if host is not None and host.fmu_devices:
+        fmu_kwargs["spec"] = fmu_spec(host)
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
-    world = WorldPorts(seed=cfg.seed)
+    world = WorldPorts(seed=cfg.seed, airframe=host.world_model if host is not None else "f450")
     devices: dict[str, Any] = {"world": world}
     hub = DeviceHub(world)
     rc_port = {"sbus": "rc_sbus", "dsm": "rc_dsm", "ppm": "rc_ppm"}

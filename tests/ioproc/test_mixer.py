@@ -20,6 +20,7 @@ from ioproc.mixer import (
     load_from_buf,
     parse_mixer_text,
 )
+from firmware.romfs import ROMFS_ROOT
 from ioproc.protocol import Era
 
 QUAD_X_FILE = """Multirotor mixer for PX4FMU
@@ -237,3 +238,16 @@ def test_huge_scaler_numbers_are_read_as_the_c_int_the_io_stores(digits, stored)
     assert quad.idle_speed == stored / 10000.0
     outputs = quad.mix(controls(1.0, -1.0, 1.0, 1.0), 8)
     assert all(math.isfinite(o) for o in outputs)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (ROMFS_ROOT / "mixers").glob("*.main.mix")))
+def test_every_romfs_main_mixer_uploads_to_the_e14_io(name: str) -> None:
+    """What px4io does with a ROMFS main mixer: filter, 59-byte chunks, the IO's 256-byte
+    buffer parsed only at a chunk ending on a space or line end. A file laid out so that no
+    chunk does overflows the buffer and the IO never sets MIXER_OK (the AETR mixer's padded
+    columns are there for that)."""
+    text = filter_mixer_file((ROMFS_ROOT / "mixers" / name).read_text())
+    io = MixerUpload()
+    results = [io.handle(w) for w in encode_mixer_upload(text, 64)]
+    assert results[-1].mixer_ok, io.last_error
+    assert len(io.group) == len(parse_mixer_text(text))
