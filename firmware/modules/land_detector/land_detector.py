@@ -268,7 +268,8 @@ class LandDetectorModule(WorkItemModule):
     def status_lines(self) -> list[str]:
         m = self.msg
         extra = [self.fw.status_line()] if self.fw is not None else []
-        return [f"type: {self.kind}"] + extra + [(f"landed {m.landed} maybe_landed {m.maybe_landed} ground_contact "
+        return [f"type: {self.kind}", *extra,
+                (f"landed {m.landed} maybe_landed {m.maybe_landed} ground_contact "
                  f"{m.ground_contact} freefall {m.freefall}"),
                 (f"low throttle {m.has_low_throttle} vertical {m.vertical_movement} horizontal "
                  f"{m.horizontal_movement} rotational {m.rotational_movement}")]
