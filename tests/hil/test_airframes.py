@@ -44,3 +44,23 @@ def test_an_unknown_airframe_is_one_line_and_exit_2(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown airframe 'zeppelin'" in err[0] and "2100" in err[0]
     assert cli.main(["fly", "--airframe", "9999"]) == 2
+
+
+def test_each_airframe_files_outputs_are_what_its_world_model_drives():
+    """The airframe file's ``@output MAIN3 throttle`` lines and the world's channel map say the
+    same: a motor channel is a motor or throttle, a servo channel names its surface."""
+    from hil.world.fdm import AIRFRAMES, N_MAIN, Motor, Servo
+
+    for frame in all_airframes():
+        outputs = dict(frame.outputs)
+        model = AIRFRAMES[frame.host.world_model]
+        for ch, out in enumerate(model.outputs):
+            name = f"MAIN{ch + 1}" if ch < N_MAIN else f"AUX{ch - N_MAIN + 1}"
+            said = outputs.get(name, "")
+            if isinstance(out, Motor):
+                assert said.startswith(("motor", "throttle")), (frame.name, name, said)
+            elif isinstance(out, Servo):
+                surface = out.prop.split("/")[1].split("-")[0]   # fcs/aileron-cmd-norm
+                assert said == surface, (frame.name, name, said, out.prop)
+            else:
+                assert not said, (frame.name, name, said)
