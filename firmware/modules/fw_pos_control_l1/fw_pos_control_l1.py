@@ -40,6 +40,7 @@ from firmware.modules.fw_att_control.airspeed_input import AirspeedInput
 from firmware.modules.fw_pos_control_l1.landing import (
     FLARE_BELOW_GROUND_M,
     flare_time_constant,
+    slope_aim_shift_m,
     slope_altitude,
 )
 from firmware.modules.fw_pos_control_l1.params import PARAMS
@@ -434,7 +435,7 @@ class FwPosControlL1Module(WorkItemModule):
             self.tecs.reset()
             self.reset_integral = True
             return _Out(0.0, v["FW_LND_FL_PMIN"] * _D2R if self.armed else 0.0, st.yaw, 0.0,
-                        target)
+                        target, wheel=self.armed)
         # the approach line, previous -> touchdown, extended past it for the rollout
         ln, le = target[0] - prev_ne[0], target[1] - prev_ne[1]
         length = math.hypot(ln, le)
@@ -470,11 +471,17 @@ class FwPosControlL1Module(WorkItemModule):
                        v["FW_LND_FL_PMAX"] * _D2R, speed_weight=0.0, alt_tc=self.flare_tc)
             roll_lim = _CLIMBOUT_ROLL
         else:
-            hgt_sp = slope_altitude(land_alt, dist, slope, self.sp_start_alt)
+            shift = slope_aim_shift_m(flare_alt, slope, v_app)
+            hgt_sp = slope_altitude(land_alt, dist - shift, slope, self.sp_start_alt)
             self._tecs(st, hgt_sp, v_app, thr_min, thr_max, v["FW_THR_CRUISE"], p_min, p_max)
         if self.tecs_mode == 0:
             self.tecs_mode = 3
         roll = _clamp(self.l1.nav_roll(), -roll_lim, roll_lim)
+        if self.flaring:
+            # from the flare on, the rudder (and on the ground the steered wheel) holds the
+            # runway's bearing: ailerons cannot steer a rollout
+            return _Out(roll, self.tecs.pitch_sp, math.atan2(ue, un), self.tecs.throttle_sp,
+                        target, wheel=True)
         return _Out(roll, self.tecs.pitch_sp, self.l1.nav_bearing_rad, self.tecs.throttle_sp,
                     target)
 

@@ -154,3 +154,36 @@ def test_runway_takeoff_holds_heading_and_climbs_out():
     assert max(abs(r[2]) for r in ground) < 3.0            # on the runway's centre line
     assert abs(rows[-1][3] - 30.0) < 3.0
     assert max(r[5] for r in rows if r[4] > 8.0) < STALL_AOA_RAD
+
+
+def test_landing_approach_flare_and_touchdown_on_the_point():
+    """From 20 m, a touchdown point 400 m ahead: hold altitude until the glide slope, follow
+    it, flare, throttle cut (FW_THR_LND_MAX 0), touch down on the point and roll out straight."""
+    rig = FwRig({"FW_THR_LND_MAX": 0.0}, agl_m=20.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(4, 400.0, 0.0, -20.0, prev=(0.0, 0.0, 0.0))   # SP_LAND on the ground
+    rows: list[tuple[float, ...]] = []
+
+    def log(r: FwRig) -> None:
+        tr = r.truth()
+        n, e, _h = r.local()
+        c = r.topic("actuator_controls_0")
+        thr = c.control[3] if c is not None else math.nan
+        rows.append((tr.t_ns * 1e-9, n, e, tr.agl_m, tr.vel_ned_m_s[2], tr.airspeed_m_s,
+                     tr.aoa_rad, thr))
+
+    rig.run(30.0, log, every_n=100)
+    touch = next(i for i, r in enumerate(rows) if r[3] < 0.21)
+    t = rows[touch]
+    sink = max(r[4] for r in rows[touch - 3:touch])
+    print(f"\nlanding: touchdown {t[1] - 400.0:+.1f} m from the point, {t[2]:+.1f} m off the "
+          f"line, sink {sink:.2f} m/s, airspeed {t[5]:.1f} m/s")
+    assert abs(t[1] - 400.0) < 30.0 and abs(t[2]) < 3.0
+    assert sink < 1.5
+    assert max(r[6] for r in rows if r[5] > 8.0) < STALL_AOA_RAD
+    # the throttle is cut below the flare altitude (FW_LND_TLALT -1 = FW_LND_FLALT, 3 m)
+    assert all(r[7] == 0.0 for r in rows if r[3] < 2.5 and r[0] > 1.0)
+    # on the ground, rolling straight along the approach line
+    assert all(abs(r[2]) < 3.0 for r in rows[touch:])
