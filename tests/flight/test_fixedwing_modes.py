@@ -47,6 +47,8 @@ def test_vehicle_status_type_follows_mav_type_and_its_changes() -> None:
     rig.run(0.3)
     st = rig.status
     assert st.system_type == 1 and st.vehicle_type == FIXED_WING and not st.is_vtol
+    assert rig.system.modules.command("commander", ["status"]) == 0
+    assert any("vehicle type: fixed wing, MAV_TYPE 1" in line for line in rig.out)
     rig.params.set("MAV_TYPE", 22)                   # a standard VTOL: takes off as a copter
     rig.run(0.1)
     st = rig.status
@@ -245,3 +247,21 @@ def test_copter_keeps_its_tight_altitude_acceptance() -> None:
         results[vtype] = rig.last("mission_result").seq_reached
         assert current(rig).loiter_radius == (50.0 if vtype == FIXED_WING else 0.0)
     assert results == {ROTARY_WING: -1, FIXED_WING: 0}
+
+
+@pytest.mark.parametrize("vtype, valid", [(FIXED_WING, False), (ROTARY_WING, True)])
+def test_a_planes_landing_needs_an_approach_waypoint(vtype: int, valid: bool) -> None:
+    rig = fw_rig()
+    rig.set("vehicle_status", vehicle_type=vtype)
+    rig.run(0.1)
+    store = _store(rig)
+    store.store_mission([_item(store, 178, 0, 0, 0.0, speed_m_s=15.0),  # DO_CHANGE_SPEED
+                         _item(store, 21, 200, 0, 0.0)])
+    rig.run(0.1)
+    assert rig.last("mission_result").valid == valid
+    if not valid:
+        assert "needs a waypoint before it" in rig.dmesg()
+    store.store_mission([_item(store, 22, 0, 0, 30.0), _item(store, 16, 400, 0, 30.0),
+                         _item(store, 21, 200, 0, 0.0)])
+    rig.run(0.1)
+    assert rig.last("mission_result").valid

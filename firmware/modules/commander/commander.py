@@ -543,7 +543,11 @@ class CommanderModule(CommandHandler, WorkItemModule):
     def status_lines(self) -> list[str]:
         state = {INIT: "INIT", STANDBY: "STANDBY", ARMED: "ARMED",
                  STANDBY_ERROR: "STANDBY_ERROR"}[self.arming_state]
+        vtype = {VEHICLE_TYPE_FIXED_WING: "fixed wing", 1: "rotary wing"}.get(
+            self.vehicle_type, "unknown")
         out = [f"arming state: {state}",
+               f"vehicle type: {vtype}{' (VTOL)' if self.is_vtol else ''}, MAV_TYPE "
+               f"{self.mav_type}",
                (f"navigation state: {modes.NAV_NAMES.get(self.nav_state)} "
                 f"(user: {modes.NAV_NAMES.get(self.user_nav)})"),
                f"failsafe: {fs.ACTION_NAMES_LOWER[self.failsafe_action]}"

@@ -88,6 +88,8 @@ class MissionMode(NavMode):
     def _feasible(self) -> bool:
         if not self.items:
             return False
+        if self.nav.fixed_wing() and not self._fw_landing_ok():
+            return False
         limit = self.nav.p["MIS_DIST_1WP"]
         home = self.nav.home()
         first = next((it for it in self.items if it.nav_cmd in _POSITION_ITEMS
@@ -102,6 +104,20 @@ class MissionMode(NavMode):
         if outside is not None:
             self.nav.error(f"Geofence violation for waypoint {outside + 1}")
             return False
+        return True
+
+    def _fw_landing_ok(self) -> bool:
+        """PX4's fixed-wing landing check: a plane lands along the line from the waypoint
+        before the land item to the touchdown point, so a land item needs a position item
+        right before it (it cannot be the first item either)."""
+        for i, it in enumerate(self.items):
+            if it.nav_cmd != LAND:
+                continue
+            prev = self.items[i - 1] if i > 0 else None
+            if prev is None or prev.nav_cmd not in _POSITION_ITEMS or prev.nav_cmd == LAND:
+                self.nav.warn(f"Mission rejected: fixed-wing landing (item {i + 1}) needs a "
+                              "waypoint before it for the approach")
+                return False
         return True
 
     def _fence_violation(self) -> int | None:
