@@ -433,6 +433,41 @@ class Runner:
         self.advance(1.0)
 
 
+    def _do_cruise(self, step: Step) -> None:
+        """Ready, upload the airframe's default mission (hil.missions), arm, start it, and
+        wait until the vehicle has passed waypoint ``waypoint`` of its square (a plane is then
+        in cruise at the mission's altitude and airspeed)."""
+        from hil.airframes import resolve
+        from hil.missions import mission_for
+
+        a = step.arg
+        t_end = self.orch.t_ns + int(a["within"] * NS)
+        if not self._ready:
+            self._do_ready(Step("ready", {"within": a["within"]}))
+        gcs = self._gcs()
+        home = gcs.last.get("HOME_POSITION")
+        mission = mission_for(resolve(self.sc.airframe).vehicle_class)
+        items = mission.items(home.latitude * 1e-7, home.longitude * 1e-7,
+                              gcs.target_system, gcs.target_component)
+        if gcs.upload_mission(items) != 0:
+            raise ScenarioError("the default mission was refused")
+        ack = gcs.arm(timeout_s=5)
+        if ack.result != 0:
+            text = gcs.last.get("STATUSTEXT")
+            raise ScenarioError(f"arming refused ({ack.result}): {text.text if text else ''}")
+        gcs.start_mission()
+        mark = gcs.mark()
+        seq = a["waypoint"]
+
+        def passed() -> bool:
+            return any(m.seq >= seq for m in gcs.messages("MISSION_ITEM_REACHED", since=mark))
+        while not passed():
+            if self.orch.t_ns >= t_end:
+                raise ScenarioError(f"waypoint {seq} not reached within {a['within']:g} s")
+            self.advance(0.2)
+        self.say(f"t={self.orch.t_ns / NS:.3f} s: cruise: waypoint {seq} passed")
+
+
 def _apply_initial(sc: Scenario, dev: dict[str, Any], seed: int) -> None:
     ini = sc.initial
     world_keys = {k: ini[k] for k in ("heading_deg", "lat_deg", "lon_deg", "alt_m") if k in ini}

@@ -28,7 +28,7 @@ TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_p
             "known_failure", "uavcan_nodes", "can_escs"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
-              "settle")
+              "cruise", "settle")
 PILOT_ACTIONS = ("sticks", "switch", "channel", "safety")
 GCS_COMMANDS = ("arm", "force_arm", "disarm", "takeoff", "land", "rtl", "mode", "mission",
                 "start_mission", "param")
@@ -358,6 +358,15 @@ def _step(i: int, raw: Any) -> Step:
         _only(val, {"alt", "within"}, w)
         arg = {"alt": _num(val.get("alt", 5.0), f"{w}.alt", hi=MAX_ALT_M, what="an altitude in m"),
                "within": _num(val.get("within", 90), f"{w}.within")}
+    elif kind == "cruise":
+        # the airframe's default mission (hil.missions), flown until waypoint N is passed
+        val = val if isinstance(val, dict) else {"waypoint": val if val is not None else 1}
+        _only(val, {"waypoint", "within"}, w)
+        wp = val.get("waypoint", 1)
+        if isinstance(wp, bool) or not isinstance(wp, int) or not 1 <= wp <= 4:
+            raise ScenarioError(f"{w}.waypoint: a waypoint of the default square, 1..4, "
+                                f"got {_r(wp)}")
+        arg = {"waypoint": wp, "within": _num(val.get("within", 240), f"{w}.within")}
     else:  # settle
         arg = {"within": _num(val, w)}
     at = d.get("at")
@@ -465,8 +474,16 @@ def _from_dict(data: Any, source: str) -> Scenario:
     if not (rc is None or isinstance(rc, str)) or rc not in RC_KINDS:
         raise ScenarioError(f"rc: one of sbus, dsm, ppm or null, got {_r(rc)}")
     airframe = d.get("airframe", 4011)
+    if isinstance(airframe, str):  # a name, as hil run --airframe takes it
+        from hil.airframes import resolve
+
+        try:
+            airframe = resolve(airframe).id
+        except ValueError as exc:
+            raise ScenarioError(f"airframe: {exc}") from None
     if isinstance(airframe, bool) or not isinstance(airframe, int):
-        raise ScenarioError(f"airframe: an airframe number (SYS_AUTOSTART), got {_r(airframe)}")
+        raise ScenarioError(f"airframe: an airframe number (SYS_AUTOSTART) or name, got "
+                            f"{_r(airframe)}")
     _params({"SYS_AUTOSTART": airframe}, "airframe")
     params = _params(d.get("params") or {}, "params")
     initial = _initial(d.get("initial") or {})

@@ -212,7 +212,16 @@ def _io_pwm(s: Sampler) -> Any:
 
 def _motors(s: Sampler) -> list[float]:
     world = s.dev["world"].world
-    return [round(e.pulse_us, 1) for e in world.escs[:world.airframe.n_motors]]
+    return [round(world.escs[ch].pulse_us, 1) for ch in world.airframe.motor_channels]
+
+
+def _servos(s: Sampler) -> list[float]:
+    world = s.dev["world"].world
+    return [round(world.escs[ch].pulse_us, 1) for ch in world.airframe.servo_channels]
+
+
+def _euler_deg(i: int) -> Callable[[Sampler], float]:
+    return lambda s: round(math.degrees(s.truth().euler_rad[i]), 2)
 
 
 def _new_texts(s: Sampler) -> list[str]:
@@ -324,7 +333,16 @@ OBSERVABLES: dict[str, tuple[str, Callable[[Sampler], Any]]] = {
                   st.get("resets")),
     "io.pwm_us": ("pulse width on each IO PWM pin now (us, 8 values)", _io_pwm),
     "motor_us": ("pulse width each motor's ESC receives (us, one per motor)", _motors),
+    "servo_us": ("pulse width each servo receives (us, one per servo: a plane's surfaces in "
+                 "the airframe's output order)", _servos),
     "alt_agl_m": ("true height above ground (m)", lambda s: round(s.truth().agl_m, 3)),
+    "airspeed_m_s": ("true airspeed (m/s)", lambda s: round(s.truth().airspeed_m_s, 3)),
+    "aoa_deg": ("true angle of attack (deg)",
+                lambda s: round(math.degrees(s.truth().aoa_rad), 2)),
+    "roll_deg": ("true roll angle (deg, right wing down positive)", _euler_deg(0)),
+    "pitch_deg": ("true pitch angle (deg, nose up positive)", _euler_deg(1)),
+    "vtol_state": ("vtol_vehicle_status.vehicle_vtol_state: 1 to FW, 2 to MC, 3 MC, 4 FW",
+                   lambda s: s.field("vtol_vehicle_status", "vehicle_vtol_state")),
     "speed_m_s": ("true ground speed (m/s)",
                   lambda s: math.sqrt(sum(v * v for v in s.truth().vel_ned_m_s))),
     "home_distance_m": ("true horizontal distance from the start point (m)",
