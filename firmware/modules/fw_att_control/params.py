@@ -1,9 +1,10 @@
 """Fixed-wing attitude control parameters (PX4's FW_* names and defaults, v1.12 era), and the
 airspeed and attitude limits both fixed-wing modules read.
 
-The shared ones (``FW_AIRSPD_*``, ``FW_ARSP_MODE``, ``FW_R_LIM``, ``FW_P_LIM_*``, ``FW_MAN_R_MAX``) are declared
-once here and imported by fw_pos_control_l1, so the two modules hand the parameter table the
-same declaration objects (a name declared twice must have the same metadata).
+The shared ones (``FW_AIRSPD_*``, ``FW_ARSP_MODE``, ``FW_R_LIM``, ``FW_P_LIM_*``,
+``FW_MAN_R_MAX``) are declared once here and imported by fw_pos_control_l1, so the two
+modules hand the parameter table the same declaration objects (a name declared twice must have
+the same metadata).
 """
 
 from __future__ import annotations

@@ -44,6 +44,8 @@ from firmware.modules.fw_pos_control_l1.landing import (
     slope_altitude,
 )
 from firmware.modules.fw_pos_control_l1.params import PARAMS
+from firmware.modules.fw_pos_control_l1.state import Out as _Out
+from firmware.modules.fw_pos_control_l1.state import State as _State
 from firmware.modules.fw_pos_control_l1.takeoff import LaunchDetector, RunwayTakeoff
 from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
 from firmware.modules.mc_pos_control.geo import MapProjection
@@ -575,24 +577,3 @@ class FwPosControlL1Module(WorkItemModule):
                 (f"L1 distance {self.l1.l1_distance_m:.1f} m xtrack "
                  f"{self.l1.crosstrack_error_m:+.1f} m")]
 
-
-class _State:
-    """The vehicle state one run works on (local NED, AMSL altitude)."""
-
-    __slots__ = ("pos", "vel", "alt", "climb", "accel_x", "yaw", "now", "dt")
-
-    def __init__(self, pos: tuple[float, float], vel: tuple[float, float], alt: float,
-                 climb: float, accel_x: float, yaw: float, now: int, dt: float) -> None:
-        self.pos, self.vel, self.alt, self.climb = pos, vel, alt, climb
-        self.accel_x, self.yaw, self.now, self.dt = accel_x, yaw, now, dt
-
-
-class _Out:
-    """One run's attitude setpoint and throttle."""
-
-    __slots__ = ("roll", "pitch", "yaw", "throttle", "target", "wheel")
-
-    def __init__(self, roll: float, pitch: float, yaw: float, throttle: float,
-                 target: tuple[float, float] | None, wheel: bool = False) -> None:
-        self.roll, self.pitch, self.yaw, self.throttle = roll, pitch, yaw, throttle
-        self.target, self.wheel = target, wheel
