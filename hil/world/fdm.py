@@ -78,6 +78,10 @@ class Airframe:
     stall_aoa_rad: float | None = None
     #: the airframe's flight pack
     battery: BatteryParams = field(default_factory=BatteryParams)
+    #: engine that pulls the vehicle forward in wing-borne flight (None: a multicopter)
+    forward_engine: int | None = None
+    #: engines that lift the vehicle in hover (a multicopter's or a VTOL's rotors)
+    lift_engines: tuple[int, ...] = ()
 
     @property
     def motor_channels(self) -> tuple[int, ...]:
@@ -105,6 +109,7 @@ AIRFRAMES: dict[str, Airframe] = {
         name="f450",
         model="F450",
         outputs=_outputs((Motor(0), Motor(1), Motor(2), Motor(3))),  # PX4 quad X order
+        lift_engines=(0, 1, 2, 3),
         gear_height_m=0.15,
         gear_stiffness_n_m=4 * 3000.0,
         mass_kg=1.4,
@@ -130,6 +135,31 @@ AIRFRAMES: dict[str, Airframe] = {
         # 4S 4000 mAh LiPo (4 x ~7 mOhm + leads); avionics plus three servos at cruise
         battery=BatteryParams(cells=4, capacity_mah=4000.0, r0_ohm=0.035, r1_ohm=0.018,
                               avionics_a=0.5),
+        forward_engine=0,
+    ),
+    # Standard VTOL (models/aircraft/QuadPlane: the StickPlane plus four lift rotors). Lift
+    # rotors on MAIN1-4 through the IO (PX4 quad X order), the plane's surfaces and its
+    # forward motor on the FMU's AUX1-4 in AETR order.
+    "quadplane": Airframe(
+        name="quadplane",
+        model="QuadPlane",
+        outputs=_outputs(
+            (Motor(0), Motor(1), Motor(2), Motor(3)),
+            (Servo("fcs/aileron-cmd-norm", _SURFACE_THROW_RAD),
+             Servo("fcs/elevator-cmd-norm", _SURFACE_THROW_RAD),
+             Motor(4),
+             Servo("fcs/rudder-cmd-norm", _SURFACE_THROW_RAD)),
+        ),
+        gear_height_m=0.20,
+        gear_stiffness_n_m=3 * 2000.0,
+        mass_kg=3.5,
+        motor_max_volts=16.8,
+        vehicle_class="vtol",
+        stall_aoa_rad=0.2094,
+        battery=BatteryParams(cells=4, capacity_mah=5000.0, r0_ohm=0.030, r1_ohm=0.015,
+                              avionics_a=0.5),
+        forward_engine=4,
+        lift_engines=(0, 1, 2, 3),
     ),
 }
 

@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .battery import lipo_cell_ocv_v
-from .fdm import AIRFRAMES, FT, Airframe, Fdm, Motor, Servo
+from .fdm import AIRFRAMES, FT, LBF_N, Airframe, Fdm, Motor, Servo
 from .world import PX4_HOME
 
-__all__ = ["TrimPoint", "trim_level", "trim_climb"]
+__all__ = ["TrimPoint", "HoverPoint", "trim_level", "trim_climb", "trim_hover"]
 
 _INTEGRATORS = ("rate/rotational", "rate/translational", "position/rotational",
                 "position/translational")
@@ -69,23 +69,51 @@ class TrimPoint:
     def climb_rate_m_s(self) -> float:
         return self.airspeed_m_s * math.sin(self.gamma_rad)
 
-    def pwm_us(self) -> tuple[float, ...]:
-        """Pulse widths for MAIN1.. up to the last channel the airframe uses (1500 us on a
-        channel wired to nothing)."""
+    def channel_us(self) -> dict[int, float]:
+        """Pulse width (us) per world channel the airframe uses: servos at their trim, the
+        forward motor at the trim throttle, lift rotors stopped (1000 us)."""
         af = AIRFRAMES[self.airframe]
         by_prop = {"fcs/aileron-cmd-norm": self.aileron, "fcs/elevator-cmd-norm": self.elevator,
                    "fcs/rudder-cmd-norm": self.rudder}
-        used = [ch for ch, o in enumerate(af.outputs) if o is not None]
-        widths: list[float] = []
-        for ch in range(max(used) + 1):
-            out = af.outputs[ch]
+        widths: dict[int, float] = {}
+        for ch, out in enumerate(af.outputs):
             if isinstance(out, Servo):
-                widths.append(1500.0 + 500.0 * by_prop[out.prop])
+                widths[ch] = 1500.0 + 500.0 * by_prop[out.prop]
             elif isinstance(out, Motor):
-                widths.append(1000.0 + 1000.0 * self.throttle)
-            else:
-                widths.append(1500.0)
-        return tuple(widths)
+                forward = out.engine == af.forward_engine
+                widths[ch] = 1000.0 + 1000.0 * self.throttle if forward else 1000.0
+        return widths
+
+    def pwm_us(self) -> tuple[float, ...]:
+        """:meth:`channel_us` as a tuple from MAIN1 up to the last channel used (1500 us on a
+        channel wired to nothing)."""
+        widths = self.channel_us()
+        return tuple(widths.get(ch, 1500.0) for ch in range(max(widths) + 1))
+
+
+@dataclass(frozen=True, slots=True)
+class HoverPoint:
+    """Hover in still air: the common ESC throttle of the lift rotors."""
+
+    airframe: str
+    throttle: float  # ESC throttle 0..1 of every lift rotor
+    rpm: float
+    thrust_per_rotor_n: float
+    battery_current_a: float
+    battery_voltage_v: float
+    residual: float  # largest remaining body acceleration, m/s^2 or rad/s^2
+
+    def channel_us(self) -> dict[int, float]:
+        """Lift rotors at the hover throttle, servos centred, the forward motor stopped."""
+        af = AIRFRAMES[self.airframe]
+        widths: dict[int, float] = {}
+        for ch, out in enumerate(af.outputs):
+            if isinstance(out, Servo):
+                widths[ch] = 1500.0
+            elif isinstance(out, Motor):
+                lift = out.engine in af.lift_engines
+                widths[ch] = 1000.0 + 1000.0 * self.throttle if lift else 1000.0
+        return widths
 
 
 def _pack_steady_v(af: Airframe, jsb_throttle: float, motor_a: float) -> tuple[float, float]:
@@ -108,6 +136,45 @@ def trim_level(airframe: str = "plane", airspeed_m_s: float = 16.0, agl_m: float
     return _solve(airframe, airspeed_m_s, agl_m, settle_steps, max_iter, esc_throttle=None)
 
 
+def trim_hover(airframe: str = "quadplane", agl_m: float = 50.0, settle_steps: int = 600,
+               max_iter: int = 20) -> HoverPoint:
+    """The lift rotors' common throttle that holds the vehicle in still air (secant search on
+    the vertical acceleration, state frozen as for :func:`trim_level`)."""
+    af = AIRFRAMES[airframe]
+    if not af.lift_engines:
+        raise ValueError(f"{airframe!r} has no lift rotors")
+    lat, lon, alt = PX4_HOME
+    fdm = Fdm(af, 0.001, lat, lon, alt, 0.0, agl_m)
+    x = fdm.exec
+    for k in _INTEGRATORS:
+        x["simulation/integrator/" + k] = 0
+
+    def accel(jsb: float) -> np.ndarray:
+        for e in af.lift_engines:
+            x[f"fcs/throttle-cmd-norm[{e}]"] = jsb
+        for _ in range(settle_steps):
+            x.run()
+        return np.array([x[p] for p in _RESIDUALS]) / _SCALE
+
+    a0, a1 = 0.3, 0.6
+    w0, w1 = accel(a0)[2], accel(a1)[2]
+    for _ in range(max_iter):
+        if abs(w1) < 1e-5 or w1 == w0:
+            break
+        a0, a1, w0 = a1, min(1.0, max(0.05, a1 - w1 * (a1 - a0) / (w1 - w0))), w1
+        w1 = accel(a1)[2]
+    res = accel(a1)
+    amps = sum(x[f"propulsion/engine[{e}]/current-amperes"] for e in af.lift_engines)
+    v, i = _pack_steady_v(af, a1, amps)
+    e0 = af.lift_engines[0]
+    return HoverPoint(
+        airframe=airframe, throttle=float(a1 * af.motor_max_volts / v),
+        rpm=float(x[f"propulsion/engine[{e0}]/propeller-rpm"]),
+        thrust_per_rotor_n=float(x[f"propulsion/engine[{e0}]/thrust-lbs"] * LBF_N),
+        battery_current_a=float(i), battery_voltage_v=float(v),
+        residual=float(np.max(np.abs(res))))
+
+
 def trim_climb(airframe: str = "plane", airspeed_m_s: float = 16.0, esc_throttle: float = 1.0,
                agl_m: float = 50.0, settle_steps: int = 300, max_iter: int = 40) -> TrimPoint:
     """Steady straight climb (or descent) at ``airspeed_m_s`` with the ESC at
@@ -125,7 +192,9 @@ def _solve(airframe: str, airspeed_m_s: float, agl_m: float, settle_steps: int,
     lat, lon, alt = PX4_HOME
     fdm = Fdm(af, 0.001, lat, lon, alt, 0.0, agl_m, airspeed_m_s=airspeed_m_s)
     x = fdm.exec
-    engine = next(o.engine for o in af.outputs if isinstance(o, Motor))
+    engine = af.forward_engine
+    if engine is None:
+        raise ValueError(f"{airframe!r} has no forward motor")
     thr_prop = f"fcs/throttle-cmd-norm[{engine}]"
     amps_prop = f"propulsion/engine[{engine}]/current-amperes"
     climb = esc_throttle is not None
@@ -198,8 +267,10 @@ def _solve(airframe: str, airspeed_m_s: float, agl_m: float, settle_steps: int,
     return TrimPoint(
         airframe=airframe, airspeed_m_s=airspeed_m_s, aoa_rad=float(z[0]), roll_rad=float(z[5]),
         aileron=float(z[2]), elevator=float(z[3]), rudder=float(z[4]),
-        throttle=esc_throttle if esc_throttle is not None else jsb * af.motor_max_volts / v,
-        motor_current_a=motor_a, battery_current_a=i, battery_voltage_v=v, residual=worst,
+        throttle=float(esc_throttle if esc_throttle is not None
+                       else jsb * af.motor_max_volts / v),
+        motor_current_a=float(motor_a), battery_current_a=float(i), battery_voltage_v=float(v),
+        residual=worst,
         gamma_rad=float(z[1]) if climb else 0.0)
 
 
@@ -228,6 +299,12 @@ def main() -> None:
         print(f" {v:5.1f}  {math.degrees(t.aoa_rad):6.2f}  {t.elevator:5.3f}  {t.throttle:5.3f}"
               f"  {t.battery_current_a:7.2f}  {p:6.1f}  {minutes:6.1f}")
     print(f"slowest level trim {slowest} m/s, fastest {top} m/s")
+    if af.lift_engines:
+        h = trim_hover(name)
+        minutes = 0.8 * af.battery.capacity_mah / 1000.0 / h.battery_current_a * 60.0
+        print(f"hover: ESC throttle {h.throttle:.3f}, {h.rpm:.0f} rpm, {h.thrust_per_rotor_n:.2f} N "
+              f"per rotor, battery {h.battery_current_a:.1f} A "
+              f"({h.battery_current_a * h.battery_voltage_v:.0f} W, {minutes:.1f} min)")
     for v in (14.0, 16.0, 18.0):
         c = trim_climb(name, v, 1.0)
         print(f"full-throttle climb at {v:.0f} m/s: {c.climb_rate_m_s:.2f} m/s "
