@@ -289,6 +289,8 @@ STACK_MODULES: Final[dict[str, str]] = {
     "ekf2": "firmware.modules.ekf2:Ekf2Module",
     "mc_rate_control": "firmware.modules.mc_rate_control:McRateControlModule",
     "mc_att_control": "firmware.modules.mc_att_control:McAttControlModule",
+    "mc_att_control_so3": "firmware.modules.mc_att_control_so3:McAttControlSo3Module",
+    "mc_att_select": "firmware.modules.mc_att_select:McAttSelectModule",
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
     "fw_att_control": "firmware.modules.fw_att_control:FwAttControlModule",
     "fw_pos_control_l1": "firmware.modules.fw_pos_control_l1:FwPosControlL1Module",

@@ -95,7 +95,12 @@ class WorkQueue:
     def _dispatch(self) -> None:
         k = self.kernel
         q = self._q
-        item = q.popleft()
+        try:
+            item = q.popleft()
+        except IndexError:
+            # every queued item was removed (a module stopped) after this dispatch was posted
+            self._armed = False
+            return
         item._queued = False
         try:
             item.entry()

@@ -18,7 +18,8 @@ def dummy(name):
 #: modules replaced by dummies (no board hardware in these tests)
 DUMMIES = ("mpu6000", "sensors", "commander", "px4io", "fmu", "ekf2", "mc_att_control",
            "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
-           "mc_rate_control", "fw_att_control", "fw_pos_control_l1")
+           "mc_rate_control", "fw_att_control", "fw_pos_control_l1",
+           "mc_att_select")
 #: modules made unavailable on purpose, to check that a missing module is reported and skipped
 MISSING = ("l3gd20", "lsm303d", "ms5611", "hmc5883", "gps", "navigator", "land_detector",
            "mavlink")
@@ -90,7 +91,7 @@ def test_rcs_quad_x_starts_mc_apps_and_reports_missing_modules(platform, sd):
     assert "[init] airframe: 4001_quad_x" in text
     assert b.running == {"mpu6000", "sensors", "commander", "px4io", "ekf2", "mc_att_control",
                          "mc_pos_control", "logger", "dataman", "rc_update", "battery_status",
-                         "mc_rate_control", "failure_injector", "load_mon"}
+                         "mc_rate_control", "failure_injector", "load_mon", "mc_att_select"}
     env = b.shell.env
     assert (env["VEHICLE_TYPE"], env["MIXER"], env["PWM_OUT"]) == ("mc", "quad_x", "1234")
     assert env["MIXER_FILE"] == "/etc/mixers/quad_x.main.mix"

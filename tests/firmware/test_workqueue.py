@@ -119,3 +119,16 @@ def test_exception_in_run_names_the_work_item(platform, kernel):
     Broken(platform, "mpu6000", "wq:SPI1").schedule_now()
     with pytest.raises(KernelError, match="work item mpu6000 on wq:SPI1 .*sensor on fire"):
         kernel.run(1000)
+
+
+def test_item_removed_before_its_dispatch_is_skipped(platform, kernel):
+    """A module stopped between the queueing of its run and the dispatch (an attitude
+    controller swapped from the shell in flight): the dispatch finds an empty queue and the
+    queue works on."""
+    log = []
+    a = Recorder(platform, "a", "wq:rate_ctrl", log)
+    kernel.call_at(100, a.schedule_now)
+    kernel.call_at(100, a.schedule_clear)         # same instant, before the dispatch runs
+    kernel.call_at(200, a.schedule_now)
+    kernel.run(1000)
+    assert log == [("a", 200)]

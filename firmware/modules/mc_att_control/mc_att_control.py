@@ -17,6 +17,12 @@ Setpoint source: ``vehicle_attitude_setpoint`` (the position controller), or in 
 (manual, attitude control without climb rate control) the sticks: tilt up to
 ``MPC_MAN_TILT_MAX``, yaw rate up to ``MPC_MAN_Y_MAX``, throttle through ``MPC_THR_CURVE``.
 Runs on ``vehicle_attitude`` updates, at most every ``MC_ATT_INTERVAL`` (250 Hz).
+
+It can replace another attitude controller in flight (``mc_att_control_so3``, issue 23): its
+first output continues from the last rate setpoint the other one published (``handover.py``),
+and the manual heading setpoint from the last attitude setpoint, so the swap has no step.
+Started, it records itself in ``MC_ATT_IMPL`` (``mc_att_select``), so that the parameter always
+names the running attitude controller.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
+from firmware.modules.mc_att_control.handover import Handover
 from firmware.modules.mc_att_control.quat import (
     Quat,
     qconj,
@@ -118,6 +125,8 @@ class McAttControlModule(WorkItemModule):
     #: at most 250 Hz, however fast the estimator publishes
     INTERVAL_LIMIT_US = 4_000
     PARAMS = PARAMS
+    #: this law's number in MC_ATT_IMPL (mc_att_select)
+    ATT_IMPL = 0
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
@@ -134,6 +143,9 @@ class McAttControlModule(WorkItemModule):
         self.man_yaw_sp = 0.0
         self.last_att_us = 0
         self.have_sp = False
+        self.handover = Handover()
+        self.first_output = True
+        self.rates_published = 0
 
     def _start(self) -> None:
         orb = self.platform.orb
@@ -157,6 +169,21 @@ class McAttControlModule(WorkItemModule):
         hover = params.get("MPC_THR_HOVER", 0.5) if params is not None else 0.5
         self.hover_thrust = float(hover if hover is not None else 0.5)
         self._load_params()
+        # bumpless start in flight: the heading setpoint the previous controller held (NaN:
+        # none yet, the first run takes the current heading)
+        last_sp = self.sub_att_sp.node.last
+        yaw_sp = float(last_sp.yaw_body) if last_sp is not None else math.nan
+        self.man_yaw_sp = yaw_sp if math.isfinite(yaw_sp) else math.nan
+        if params is not None and "MC_ATT_IMPL" in params \
+                and params["MC_ATT_IMPL"] != self.ATT_IMPL:
+            params.set("MC_ATT_IMPL", self.ATT_IMPL)
+        if self.sub_att.node.last is not None:
+            # a swap in flight: answer the latest attitude now, which the controller stopped
+            # a moment ago may have left queued, rather than one attitude period later
+            item.schedule_now()
+
+    def _stop(self) -> None:
+        self.info(f"stopped after {self.rates_published} rate setpoints")
 
     def _load_params(self) -> None:
         p = self.param
@@ -227,6 +254,8 @@ class McAttControlModule(WorkItemModule):
         man = self.manual
         yaw = qyaw(q)
         thr = self._throttle_curve(man.throttle)
+        if self.man_yaw_sp != self.man_yaw_sp:  # NaN: started with no heading setpoint
+            self.man_yaw_sp = yaw
         if not self.armed or self.landed and thr <= self.manthr_min + 0.05:
             self.man_yaw_sp = yaw
             self.yawspeed_ff = 0.0
@@ -287,9 +316,14 @@ class McAttControlModule(WorkItemModule):
             rr += ff * 2.0 * (x * z - w * y)
             rp += ff * 2.0 * (y * z + w * x)
             ry += ff * (w * w - x * x - y * y + z * z)
+        now = self.platform.hrt.absolute_time()
+        if self.first_output:
+            self._hand_over(rr, rp, ry, now)
+        if self.handover.active:
+            rr, rp, ry = self.handover.apply(rr, rp, ry, now)
         mr, mp, my = self.rate_max
         m = self.rates_msg
-        m.timestamp = self.platform.hrt.absolute_time()
+        m.timestamp = now
         m.roll = -mr if rr < -mr else (min(rr, mr))
         m.pitch = -mp if rp < -mp else (min(rp, mp))
         m.yaw = -my if ry < -my else (min(ry, my))
@@ -297,9 +331,23 @@ class McAttControlModule(WorkItemModule):
         m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = tb[0], tb[1], tb[2]
         m.reset_integral = self.reset_integral
         self.pub_rates.publish(m)
+        self.rates_published += 1
+
+    def _hand_over(self, rr: float, rp: float, ry: float, now: int) -> None:
+        """First output: continue from the previous controller's last rate setpoint, if recent
+        (a swap in flight), by a fading offset: this law keeps no state that could absorb it."""
+        self.first_output = False
+        ho = self.handover
+        if not ho.take(self.pub_rates.node.last, now) or not self.armed:
+            return
+        dr, dp, dy = ho.difference(rr, rp, ry)
+        ho.start_offset((dr, dp, dy), now)
+        r, p, y = ho.apply(rr, rp, ry, now)
+        self.info(ho.report(r, p, y, math.sqrt(dr * dr + dp * dp + dy * dy)))
 
     def status_lines(self) -> list[str]:
         m = self.rates_msg
         return [f"stabilized {self.stabilized} armed {self.armed} landed {self.landed}",
+                f"{self.rates_published} rate setpoints published since start",
                 (f"rate sp r {m.roll:+.3f} p {m.pitch:+.3f} y {m.yaw:+.3f} "
                  f"thrust {-m.thrust_body[2]:.3f}")]
