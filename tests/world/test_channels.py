@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from board.fmu_v2 import TRUTH_KEYS
 from hil.world import World
 from hil.world.servo import ServoInput
 from hil.worldlink import TRUTH_FIELDS, WorldPorts, truth_from_record, truth_record
+from tests.fuzzing import fuzz
 
 P = 20_000_000
 
@@ -62,3 +65,22 @@ def test_truth_record_carries_aoa_and_sideslip_last() -> None:
     assert t.aoa_rad == pytest.approx(0.0873, abs=2e-3)  # level flight path: aoa = pitch
     assert t.sideslip_rad == pytest.approx(0.0, abs=1e-6)
     assert truth_from_record(truth_record(t)) == t
+
+
+@fuzz(examples=300)
+@given(st.lists(st.tuples(st.integers(-10**12, 10**12), st.integers(-10**9, 10**10),
+                          st.integers(-10**9, 10**10)), max_size=30),
+       st.integers(-10**12, 10**12))
+def test_servo_input_takes_any_pulse_train(events, t_now) -> None:
+    """Whatever the wire carries (the boards' timer outputs are outside input to the world):
+    the command stays within the end stops and a valid train always sets it."""
+    s = ServoInput()
+    for t, high, period in events:
+        s.set_signal(t, high, period)
+    c = s.update(t_now)
+    assert -1.0 <= c <= 1.0
+    due = sorted((e for e in events if e[0] <= t_now), key=lambda e: e[0])
+    if due and (len(due) == 1 or due[-2][0] < due[-1][0]):  # one last train, no tie
+        t, high, period = due[-1]
+        if 800_000 <= high < period <= 500_000_000 and high <= 2_200_000:
+            assert s.signal_valid and s.pulse_us == pytest.approx(high * 1e-3)
