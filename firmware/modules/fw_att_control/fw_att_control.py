@@ -153,6 +153,7 @@ class FwAttControlModule(WorkItemModule):
         self.v_trim = float(p("FW_AIRSPD_TRIM"))
         self.v_max = max(float(p("FW_AIRSPD_MAX")), self.v_min)
         self.airspeed.use = int(p("FW_ARSP_MODE")) == 0
+        self.trim = (float(p("TRIM_ROLL")), float(p("TRIM_PITCH")), float(p("TRIM_YAW")))
         self.wr_p, self.wr_ff = float(p("FW_WR_P")), float(p("FW_WR_FF"))
         self.w_rmax = p("FW_W_RMAX") * _D2R
 
@@ -227,11 +228,15 @@ class FwAttControlModule(WorkItemModule):
     # -- the loop ----------------------------------------------------------------------------
 
     def _publish(self, r: float, p: float, y: float, t: float, t_sample: int) -> None:
+        """Controls out, with the airframe's surface trims added (PX4's TRIM_*: the deflection
+        level flight at trim airspeed needs, so the integrators start near zero)."""
         m = self.ctl_msg
         m.timestamp = self.platform.hrt.absolute_time()
         m.timestamp_sample = t_sample
         c = m.control
-        c[0], c[1], c[2] = r, p, y
+        tr, tp, ty = self.trim
+        c[0], c[1], c[2] = _clamp(r + tr, -1.0, 1.0), _clamp(p + tp, -1.0, 1.0), \
+            _clamp(y + ty, -1.0, 1.0)
         c[3] = t if self.armed else 0.0
         self.pub_ctl.publish(m)
         self.perf_loop.count()

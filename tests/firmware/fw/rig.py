@@ -33,6 +33,8 @@ PLANE_PARAMS: dict[str, float] = {
     # throttle 0.57, pitch 3.9 deg
     "FW_AIRSPD_MIN": 13.0, "FW_AIRSPD_TRIM": 16.0, "FW_AIRSPD_MAX": 24.0,
     "FW_THR_CRUISE": 0.57,
+    # hil.world.trim at 16 m/s: elevator 0.21, aileron 0.015 (the propeller's torque)
+    "TRIM_PITCH": 0.21, "TRIM_ROLL": 0.015,
     # full throttle climbs at ~3.5 m/s at trim speed: PX4 wants the climb limit reachable
     "FW_T_CLMB_MAX": 3.0,
 }

@@ -61,7 +61,9 @@ def test_manual_passthrough_scales_and_stabilized_roll_limit():
     rig.set_sticks(roll=0.6, pitch=0.5, yaw=-0.4, throttle=0.2)
     rig.run(0.05)
     c = rig.topic("actuator_controls_0").control
-    assert c[0] == pytest.approx(0.3) and c[1] == pytest.approx(-0.4)   # stick fwd: nose down
+    # stick forward is nose down; the airframe's trims (TRIM_*) are added, as in PX4
+    assert c[0] == pytest.approx(0.3 + PLANE_PARAMS["TRIM_ROLL"])
+    assert c[1] == pytest.approx(-0.4 + PLANE_PARAMS["TRIM_PITCH"])
     assert c[2] == pytest.approx(-0.4) and c[3] == pytest.approx(0.6)
     # stabilized: half roll stick is half of FW_MAN_R_MAX, held
     rig.set_mode("stabilized")
