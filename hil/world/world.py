@@ -113,6 +113,8 @@ class World:
         self._servo_set = tuple(setters[ch] for ch in self._servo_ch)
         self._servo_cmd = [0.0] * len(self._servo_ch)
         self._stepped = frozenset(self._motor_ch + self._servo_ch)
+        if self._servo_ch:  # a multicopter's step() does not even test for servos
+            self.step = self._step_with_servos  # type: ignore[method-assign,assignment]
         self._throttle_set = self.fdm.throttle_setters
         self._current_get = self.fdm.current_getters
         self._vmax = af.motor_max_volts
@@ -178,10 +180,8 @@ class World:
 
     # -- stepping -------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
-        """Advance n steps of dt."""
-        if self._servo_ch:
-            self._step_with_servos(n)
-            return
+        """Advance n steps of dt. (An airframe with servos steps through
+        :meth:`_step_with_servos` instead, bound over this method in ``__init__``.)"""
         updates = self._esc_updates
         setters = self._throttle_set
         currents = self._current_get
@@ -216,7 +216,7 @@ class World:
             self.t_ns = t + dt_ns
             self.steps += 1
 
-    def _step_with_servos(self, n: int) -> None:
+    def _step_with_servos(self, n: int = 1) -> None:
         """:meth:`step` for an airframe with servos (kept apart so that a multicopter's loop
         does not pay for them)."""
         s_updates = self._servo_updates
