@@ -217,3 +217,15 @@ def test_same_inputs_give_identical_truth(trim) -> None:
         return out
 
     assert run() == run()
+
+
+@pytest.mark.parametrize("rudder_us, sign", [(2000.0, 1), (1000.0, -1)])
+def test_rudder_steers_the_nose_wheel(rudder_us, sign) -> None:
+    """On the runway, +rudder turns right (yaw rate positive), as in the air."""
+    w = World(airframe="plane")
+    w.set_motor_pwm_us([1500.0, 1500.0, 1000.0, 1500.0], SERVO_PERIOD_NS)
+    w.step(200)
+    w.set_motor_pwm_us([1500.0, 1500.0, 1400.0, rudder_us], SERVO_PERIOD_NS)
+    w.step(1000)
+    assert sign * w.truth().gyro_rad_s[2] > 0.5
+    assert w.truth().agl_m == pytest.approx(AIRFRAMES["plane"].gear_height_m, abs=0.02)
