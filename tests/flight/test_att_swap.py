@@ -117,6 +117,17 @@ def test_selector_swaps_on_parameter_and_follows_a_shell_swap(platform):
     assert set(IMPLS.values()) == {"mc_att_control", "mc_att_control_so3"}
 
 
+def test_selector_ignores_a_value_naming_no_controller(platform):
+    """MC_ATT_IMPL comes from outside (a GCS's PARAM_SET): a value out of its range is
+    accepted by the parameter store, and the selector says so and keeps the controller."""
+    system = _selector_system(platform)
+    system.params.set("MC_ATT_IMPL", 7)
+    _settle(platform)
+    assert system.modules.is_running("mc_att_control")
+    texts = [t for _t, _s, mod, t in platform.dmesg if mod == "mc_att_select"]
+    assert "MC_ATT_IMPL 7: no such attitude controller, none swapped" in texts
+
+
 def test_selector_restarts_the_old_controller_when_the_new_one_fails(platform):
     system = _selector_system(platform, fail_so3=True)
     system.params.set("MC_ATT_IMPL", 1)
@@ -185,6 +196,16 @@ def _largest_step(rows) -> tuple[float, int]:
     step = max(math.dist(a[1:], b[1:]) for a, b in zip(rows, rows[1:]))
     gap = max(b[0] - a[0] for a, b in zip(rows, rows[1:]))
     return step, gap
+
+
+def test_a_second_attitude_controller_does_not_start_beside_the_first(rig):
+    out: list[str] = []
+    sh = Shell(rig.system, out.append)
+    assert sh.execute("mc_att_control_so3 start") == 1
+    assert "mc_att_control is running: `mc_att_control stop; mc_att_control_so3 start` on one " \
+        "line, or set MC_ATT_IMPL" in "".join(out)
+    assert rig.system.modules.running() == ["land_detector", "mc_att_control", "mc_att_select",
+                                            "mc_rate_control"]
 
 
 def test_swap_during_a_roll_step_keeps_the_rate_setpoint_continuous(rig):

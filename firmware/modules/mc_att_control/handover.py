@@ -20,7 +20,11 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-__all__ = ["HANDOVER_MAX_AGE_US", "HANDOVER_TAU_S", "Handover"]
+__all__ = ["ATT_CONTROLLERS", "HANDOVER_MAX_AGE_US", "HANDOVER_TAU_S", "Handover",
+           "other_att_controller"]
+
+#: the attitude controllers by their MC_ATT_IMPL number: at most one may run
+ATT_CONTROLLERS: Final[dict[int, str]] = {0: "mc_att_control", 1: "mc_att_control_so3"}
 
 #: a previous rate setpoint older than this is not continued from (the old controller
 #: stopped long ago, or there was none): 25 attitude periods at 250 Hz
@@ -29,6 +33,14 @@ HANDOVER_MAX_AGE_US: Final = 100_000
 #: loop's time constant (1 / MC_ROLL_P ~ 0.15 s), so the fade is slow against the loop and
 #: leaves no step of its own
 HANDOVER_TAU_S: Final = 0.2
+
+
+def other_att_controller(modules: Any, me: str) -> str | None:
+    """The attitude controller other than ``me`` running now, if any: two would publish
+    competing rate setpoints, so a start refuses while another runs (stop it on the same
+    line, or set MC_ATT_IMPL)."""
+    return next((n for n in ATT_CONTROLLERS.values() if n != me and modules.is_running(n)),
+                None)
 
 
 class Handover:

@@ -31,7 +31,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
-from firmware.modules.mc_att_control.handover import Handover
+from firmware.modules.mc_att_control.handover import Handover, other_att_controller
 from firmware.modules.mc_att_control.quat import (
     Quat,
     qconj,
@@ -40,7 +40,7 @@ from firmware.modules.mc_att_control.quat import (
     qmul,
     qyaw,
 )
-from firmware.platform.module import WorkItemModule
+from firmware.platform.module import ModuleError, WorkItemModule
 from firmware.platform.params import ParamDef
 
 if TYPE_CHECKING:
@@ -148,6 +148,10 @@ class McAttControlModule(WorkItemModule):
         self.rates_published = 0
 
     def _start(self) -> None:
+        other = other_att_controller(self.system.modules, self.name)
+        if other is not None:
+            raise ModuleError(f"{other} is running: `{other} stop; {self.name} start` on one "
+                              "line, or set MC_ATT_IMPL")
         orb = self.platform.orb
         self.pub_rates = self.advertise("vehicle_rates_setpoint")
         self.rates_msg = orb.new("vehicle_rates_setpoint")

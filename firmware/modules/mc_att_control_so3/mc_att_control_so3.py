@@ -24,11 +24,11 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
-from firmware.modules.mc_att_control.handover import Handover
+from firmware.modules.mc_att_control.handover import Handover, other_att_controller
 from firmware.modules.mc_att_control.mc_att_control import PARAMS as MC_ATT_PARAMS
 from firmware.modules.mc_att_control.quat import Quat, qfrom_axis_angle, qfrom_euler, qmul, qyaw
 from firmware.modules.mc_att_control_so3.so3 import so3_error, yaw_feed_forward_body
-from firmware.platform.module import WorkItemModule
+from firmware.platform.module import ModuleError, WorkItemModule
 from firmware.platform.params import ParamDef
 
 if TYPE_CHECKING:
@@ -89,6 +89,10 @@ class McAttControlSo3Module(WorkItemModule):
         self.rates_published = 0
 
     def _start(self) -> None:
+        other = other_att_controller(self.system.modules, self.name)
+        if other is not None:
+            raise ModuleError(f"{other} is running: `{other} stop; {self.name} start` on one "
+                              "line, or set MC_ATT_IMPL")
         orb = self.platform.orb
         self.pub_rates = self.advertise("vehicle_rates_setpoint")
         self.rates_msg = orb.new("vehicle_rates_setpoint")

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 from typing import Final
 
+from firmware.modules.mc_att_control.handover import ATT_CONTROLLERS
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
 
 __all__ = ["IMPLS", "PARAMS", "McAttSelectModule"]
 
 #: MC_ATT_IMPL value -> attitude controller module (shell name)
-IMPLS: Final[dict[int, str]] = {0: "mc_att_control", 1: "mc_att_control_so3"}
+IMPLS: Final[dict[int, str]] = ATT_CONTROLLERS
 
 PARAMS: tuple[ParamDef, ...] = (
     ParamDef("MC_ATT_IMPL", "INT32", 0, min=0, max=1, group="Multicopter Attitude Control",
