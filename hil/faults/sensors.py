@@ -206,7 +206,8 @@ def _pitot_mode(p: dict[str, Any]) -> str:
 
 _field("airspeed.pitot_blocked", "port_blocked",
        "The pitot tube is blocked (ice, water, an insect, the cover left on) while the sensor "
-       "works. mode 'stuck': the ram port and the drain are both blocked, so the pressure "
+       "works (target: the airspeed sensor of a plane's FMU, ms4525; the stock FMUv2 has "
+       "none). mode 'stuck': the ram port and the drain are both blocked, so the pressure "
        "trapped at that moment stays, and the airspeed reads what it was whatever the vehicle "
        "does; mode 'zero': the ram port is blocked but the drain lets the tube settle to static "
        "pressure, so the airspeed reads about zero. The chip still converts with its noise, so "
@@ -216,7 +217,8 @@ _field("airspeed.pitot_blocked", "port_blocked",
        "trips within seconds and a stuck one only once the vehicle speeds up.",
        on=_pitot_mode, off="", targets=airspeed_targets, mode="zero")
 _field("airspeed.stale", "stale",
-       "The airspeed sensor answers its bus but its conversions never complete (a hung "
+       "The airspeed sensor (ms4525, on a plane's FMU) answers its bus but its conversions "
+       "never complete (a hung "
        "conditioning ASIC): every data fetch returns the last result with the MS4525DO's "
        "status 2, 'stale data that has been already fetched'. PX4's ms4525_airspeed driver "
        "counts each as an error and restarts its measure/collect cycle; nothing is published, "
