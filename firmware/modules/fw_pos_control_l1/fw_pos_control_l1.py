@@ -38,7 +38,9 @@ from firmware.lib.l1 import L1Control, wrap_pi
 from firmware.lib.tecs import Tecs, TecsParams
 from firmware.modules.fw_att_control.airspeed_input import AirspeedInput
 from firmware.modules.fw_pos_control_l1.landing import (
+    APP_ON_SLOPE,
     FLARE_BELOW_GROUND_M,
+    Approach,
     flare_time_constant,
     slope_aim_shift_m,
     slope_altitude,
@@ -117,6 +119,7 @@ class FwPosControlL1Module(WorkItemModule):
         self.flaring = False
         self.flare_tc = 3.0
         self.land_line_locked = False
+        self.approach = Approach()
         self.hold_alt = math.nan
         self.hold_line: tuple[tuple[float, float], tuple[float, float]] | None = None
         self.tecs_mode = 0
@@ -315,6 +318,7 @@ class FwPosControlL1Module(WorkItemModule):
         self.sp_start_yaw = st.yaw
         self.flaring = False
         self.land_line_locked = False
+        self.approach.reset()
         if cur.type == SP_TAKEOFF:
             self.runway.reset()
             self.launch.reset()
@@ -447,23 +451,33 @@ class FwPosControlL1Module(WorkItemModule):
         if length < 1.0:
             ln, le, length = math.cos(st.yaw), math.sin(st.yaw), 1.0
         un, ue = ln / length, le / length
-        start = (target[0] - un * max(length, 100.0), target[1] - ue * max(length, 100.0))
-        beyond = (target[0] + un * 1000.0, target[1] + ue * 1000.0)
-        dist = (target[0] - st.pos[0]) * un + (target[1] - st.pos[1]) * ue  # along track, >0
-        wp_dist = math.hypot(target[0] - st.pos[0], target[1] - st.pos[1])
-        if wp_dist < v["FW_LND_HHDIST"] or dist < 0.0:
-            self.land_line_locked = True
-        self.l1.navigate_waypoints(start, beyond if self.land_line_locked else target, st.pos,
-                                   st.vel, st.yaw)
         slope = v["FW_LND_ANG"] * _D2R
         flare_alt = float(v["FW_LND_FLALT"])
+        v_app = v["FW_AIRSPD_MIN"] * v["FW_LND_AIRSPD_SC"]
+        shift = slope_aim_shift_m(flare_alt, slope, v_app)
+        slope_len = max(self.sp_start_alt - land_alt, 0.0) / math.tan(slope) + shift + 50.0
+        dist = (target[0] - st.pos[0]) * un + (target[1] - st.pos[1]) * ue  # along track, >0
+        wp_dist = math.hypot(target[0] - st.pos[0], target[1] - st.pos[1])
+        phase = APP_ON_SLOPE
+        if not self.flaring and not self.land_line_locked:
+            phase = self.approach.update(st.pos, st.vel, target, (un, ue), slope_len,
+                                         max(self.l1.l1_distance_m, 30.0))
+        if phase == APP_ON_SLOPE and (wp_dist < v["FW_LND_HHDIST"] or dist < 0.0):
+            self.land_line_locked = True     # short final: hold the line through the rollout
+        if self.land_line_locked:
+            far = max(length, 100.0)
+            self.l1.navigate_waypoints((target[0] - un * far, target[1] - ue * far),
+                                       (target[0] + un * 1000.0, target[1] + ue * 1000.0),
+                                       st.pos, st.vel, st.yaw)
+        else:
+            self.l1.navigate_waypoints(self.approach.line_a, self.approach.line_b, st.pos,
+                                       st.vel, st.yaw)
         tl_alt = float(v["FW_LND_TLALT"]) if v["FW_LND_TLALT"] >= 0.0 else flare_alt
         h = st.alt - land_alt
-        if h < tl_alt:
+        if h < tl_alt and phase == APP_ON_SLOPE:
             thr_max = min(thr_max, float(v["FW_THR_LND_MAX"]))
             self.tecs_mode = 4
-        v_app = v["FW_AIRSPD_MIN"] * v["FW_LND_AIRSPD_SC"]
-        if not self.flaring and h < flare_alt:
+        if not self.flaring and h < flare_alt and phase == APP_ON_SLOPE:
             self.flaring = True
             self.flare_tc = flare_time_constant(flare_alt, max(-st.climb, 0.0))
         roll_lim = self.l1.roll_lim_rad
@@ -473,8 +487,8 @@ class FwPosControlL1Module(WorkItemModule):
                        v["FW_LND_FL_PMAX"] * _D2R, speed_weight=0.0, alt_tc=self.flare_tc)
             roll_lim = _CLIMBOUT_ROLL
         else:
-            shift = slope_aim_shift_m(flare_alt, slope, v_app)
-            hgt_sp = slope_altitude(land_alt, dist - shift, slope, self.sp_start_alt)
+            hgt_sp = (slope_altitude(land_alt, dist - shift, slope, self.sp_start_alt)
+                      if phase == APP_ON_SLOPE else self.sp_start_alt)
             self._tecs(st, hgt_sp, v_app, thr_min, thr_max, v["FW_THR_CRUISE"], p_min, p_max)
         if self.tecs_mode == 0:
             self.tecs_mode = 3

@@ -102,3 +102,35 @@ def test_position_mode_climbs_on_the_stick_then_holds_altitude_and_track():
     rig.set_sticks(throttle=1.0)
     rig.run(2.0)
     assert rig.topic("tecs_status").true_airspeed_sp > 17.0
+
+
+def test_approach_repositions_when_the_landing_starts_past_the_point():
+    from firmware.modules.fw_pos_control_l1.landing import (
+        APP_JOIN,
+        APP_ON_SLOPE,
+        APP_REPOSITION,
+        Approach,
+    )
+
+    ap = Approach()
+    north = (1.0, 0.0)
+    # 200 m past the touchdown point, flying north: go to the start of the 600 m final first
+    assert ap.update((200.0, 50.0), (16.0, 0.0), (0.0, 0.0), north, 600.0, 60.0) \
+        == APP_REPOSITION
+    assert ap.line_a == ap.line_b == (-600.0, 0.0)
+    # there: join the line, at the entry altitude, until on it and flying along it
+    assert ap.update((-580.0, 30.0), (0.0, -16.0), (0.0, 0.0), north, 600.0, 60.0) == APP_JOIN
+    assert ap.line_b == (0.0, 0.0) and ap.line_a[0] < -600.0
+    assert ap.update((-560.0, 5.0), (0.0, -16.0), (0.0, 0.0), north, 600.0, 60.0) == APP_JOIN
+    assert ap.update((-540.0, 5.0), (16.0, 0.5), (0.0, 0.0), north, 600.0, 60.0) \
+        == APP_ON_SLOPE
+    # latched: no going back once on the slope
+    assert ap.update((-100.0, 40.0), (16.0, 0.0), (0.0, 0.0), north, 600.0, 60.0) \
+        == APP_ON_SLOPE
+    # a landing that starts far out beside the line joins it at once; on it, is on the slope
+    # (whose altitude is then still the entry altitude)
+    ap.reset()
+    assert ap.update((-1500.0, 100.0), (16.0, 0.0), (0.0, 0.0), north, 600.0, 60.0) == APP_JOIN
+    ap.reset()
+    assert ap.update((-1500.0, 0.0), (16.0, 0.0), (0.0, 0.0), north, 600.0, 60.0) \
+        == APP_ON_SLOPE
