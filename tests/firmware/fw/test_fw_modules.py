@@ -189,3 +189,28 @@ def test_landing_approach_flare_and_touchdown_on_the_point():
     assert all(r[7] == 0.0 for r in rows if r[3] < 2.5 and r[0] > 1.0)
     # on the ground, rolling straight along the approach line
     assert all(abs(r[2]) < 3.0 for r in rows[touch:])
+
+
+def test_hand_launch_climbs_out_at_full_throttle():
+    """A throw (12 m/s, 2 m up, motor running: LAUN_ALL_ON 0): climb-out at full throttle and
+    at least FW_TKO_PITCH_MIN while more than FW_CLMBOUT_DIFF below the target, then level."""
+    rig = FwRig(agl_m=2.0, airspeed_m_s=12.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(SP_TAKEOFF, 0.0, 0.0, 30.0, yaw=0.0)
+    rows: list[tuple[float, ...]] = []
+
+    def log(r: FwRig) -> None:
+        tr = r.truth()
+        sp = r.topic("vehicle_attitude_setpoint")
+        rows.append((tr.t_ns * 1e-9, tr.agl_m, tr.aoa_rad, sp.thrust_body[0] if sp else 0.0,
+                     sp.pitch_body if sp else 0.0, r.local()[2]))
+
+    rig.run(16.0, log, every_n=100)
+    climb = [r for r in rows if 0.5 < r[0] and r[5] < 30.0 - 10.0 - 1.0]
+    assert climb and all(r[3] == 1.0 for r in climb)
+    assert all(r[4] >= math.radians(10.0) - 1e-6 for r in climb)
+    assert min(r[1] for r in rows) > 1.5                 # never back onto the ground
+    assert max(r[2] for r in rows) < STALL_AOA_RAD
+    assert abs(rows[-1][5] - 30.0) < 3.0
