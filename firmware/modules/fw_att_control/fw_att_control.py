@@ -13,6 +13,8 @@ What it does depends on ``vehicle_control_mode``, as PX4:
   setpoints from the sticks up to ``FW_MAN_R_MAX``/``FW_MAN_P_MAX`` (plus the trim offsets
   ``FW_RSP_OFF``/``FW_PSP_OFF``), the yaw stick added to the rudder, throttle from the stick;
   the setpoint is published on ``vehicle_attitude_setpoint`` for the log;
+* **acro** (rate control, manual, no attitude control): the sticks are body rates up to
+  ``FW_ACRO_X/Y/Z_MAX``;
 * otherwise the setpoint of ``fw_pos_control_l1`` (``vehicle_attitude_setpoint``: q_d, and
   ``thrust_body[0]`` as throttle; ``fw_control_yaw_wheel`` steers with the rudder on the
   runway, holding ``yaw_body``).
@@ -66,6 +68,7 @@ MODE_NONE: Final = 0
 MODE_MANUAL: Final = 1
 MODE_STABILIZED: Final = 2
 MODE_AUTO: Final = 3
+MODE_ACRO: Final = 4
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:
@@ -153,6 +156,8 @@ class FwAttControlModule(WorkItemModule):
         self.v_trim = float(p("FW_AIRSPD_TRIM"))
         self.v_max = max(float(p("FW_AIRSPD_MAX")), self.v_min)
         self.airspeed.use = int(p("FW_ARSP_MODE")) == 0
+        self.acro_max = (p("FW_ACRO_X_MAX") * _D2R, p("FW_ACRO_Y_MAX") * _D2R,
+                         p("FW_ACRO_Z_MAX") * _D2R)
         self.trim = (float(p("TRIM_ROLL")), float(p("TRIM_PITCH")), float(p("TRIM_YAW")))
         self.wr_p, self.wr_ff = float(p("FW_WR_P")), float(p("FW_WR_FF"))
         self.w_rmax = p("FW_W_RMAX") * _D2R
@@ -165,6 +170,8 @@ class FwAttControlModule(WorkItemModule):
             att, man = bool(m.flag_control_attitude_enabled), bool(m.flag_control_manual_enabled)
             if man and not att and not m.flag_control_rates_enabled:
                 self.mode = MODE_MANUAL
+            elif man and not att:
+                self.mode = MODE_ACRO
             elif (att and man and not m.flag_control_altitude_enabled
                   and not m.flag_control_velocity_enabled
                   and not m.flag_control_position_enabled):
@@ -265,12 +272,15 @@ class FwAttControlModule(WorkItemModule):
             return
         if self.mode == MODE_STABILIZED:
             self._stabilized_setpoint()
-        if not self.have_sp:
-            return
         roll, pitch, yaw = qto_euler(tuple(att.q))  # type: ignore[arg-type]
         v = self.airspeed.indicated_m_s if self.airspeed.valid else self.v_trim
         v = _clamp(v, self.v_min, self.v_max)
         scaler = self.v_trim / v
+        if self.mode == MODE_ACRO:
+            self._acro(scaler, dt, t)
+            return
+        if not self.have_sp:
+            return
         # attitude loops: Euler rate setpoints
         roll_sp = _clamp(self.roll_sp, -self.r_lim, self.r_lim)
         pitch_sp = _clamp(self.pitch_sp, self.p_lim_min, self.p_lim_max)
@@ -301,10 +311,26 @@ class FwAttControlModule(WorkItemModule):
         m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = self.throttle_sp, 0.0, 0.0
         self.pub_rates.publish(m)
 
+    def _acro(self, scaler: float, dt: float, t_sample: int) -> None:
+        """Acro: the sticks are body rate setpoints (FW_ACRO_*_MAX at full stick)."""
+        man = self.manual
+        xm, ym, zm = self.acro_max
+        p_sp, q_sp, r_sp = man.roll * xm, -man.pitch * ym, man.yaw * zm
+        integrate = self.armed and not self.landed
+        p, q, r = self.rates
+        self._publish(self.roll_loop.control(p_sp, p, scaler, dt, integrate),
+                      self.pitch_loop.control(q_sp, q, scaler, dt, integrate),
+                      self.yaw_loop.control(r_sp, r, scaler, dt, integrate),
+                      _clamp(0.5 * (man.throttle + 1.0), 0.0, 1.0), t_sample)
+        m = self.rates_msg
+        m.timestamp = self.platform.hrt.absolute_time()
+        m.roll, m.pitch, m.yaw = p_sp, q_sp, r_sp
+        self.pub_rates.publish(m)
+
     def status_lines(self) -> list[str]:
         c = self.ctl_msg.control
         names = {MODE_NONE: "none", MODE_MANUAL: "manual", MODE_STABILIZED: "stabilized",
-                 MODE_AUTO: "auto"}
+                 MODE_AUTO: "auto", MODE_ACRO: "acro"}
         asp = (f"{self.airspeed.indicated_m_s:.1f} m/s" if self.airspeed.valid
                else f"invalid (trim {self.v_trim:.1f} m/s)")
         return [f"mode {names.get(self.mode, '?')} armed {self.armed} landed {self.landed} "

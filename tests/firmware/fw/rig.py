@@ -35,6 +35,8 @@ PLANE_PARAMS: dict[str, float] = {
     "FW_THR_CRUISE": 0.57,
     # hil.world.trim at 16 m/s: elevator 0.21, aileron 0.015 (the propeller's torque)
     "TRIM_PITCH": 0.21, "TRIM_ROLL": 0.015,
+    # roll rate feed-forward: 0.35 gives the commanded roll rate in acro (0.5 gives 1.25x)
+    "FW_RR_FF": 0.35,
     # full throttle climbs at ~3.5 m/s at trim speed: PX4 wants the climb limit reachable
     "FW_T_CLMB_MAX": 3.0,
 }
@@ -150,13 +152,14 @@ class FwRig:
         self.pub_land.publish(m)
 
     def set_mode(self, mode: str) -> None:
-        """``auto``, ``position``, ``altitude``, ``stabilized`` or ``manual``."""
+        """``auto``, ``position``, ``altitude``, ``stabilized``, ``acro`` or ``manual``."""
         m = self.mode_msg
         m.timestamp = self.now_us()
         m.flag_armed = self.armed_msg.armed
         m.flag_control_manual_enabled = mode != "auto"
         m.flag_control_auto_enabled = mode == "auto"
-        m.flag_control_rates_enabled = m.flag_control_attitude_enabled = mode != "manual"
+        m.flag_control_rates_enabled = mode != "manual"
+        m.flag_control_attitude_enabled = mode not in ("manual", "acro")
         pos = mode in ("auto", "position")
         alt = pos or mode == "altitude"
         m.flag_control_position_enabled = m.flag_control_velocity_enabled = pos

@@ -74,6 +74,19 @@ def test_manual_passthrough_scales_and_stabilized_roll_limit():
     assert rig.topic("vehicle_attitude_setpoint").roll_body == pytest.approx(math.radians(15.0))
 
 
+def test_acro_sticks_are_body_rates():
+    rig = FwRig({"FW_ACRO_X_MAX": 60.0}, agl_m=150.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("acro")
+    rig.set_sticks(roll=0.5, throttle=0.15)
+    rates: list[float] = []
+    rig.run(1.5, lambda r: rates.append(r.truth().gyro_rad_s[0]), every_n=10)
+    assert rig.topic("vehicle_rates_setpoint").roll == pytest.approx(math.radians(30.0))
+    tail = rates[50:]
+    assert sum(tail) / len(tail) == pytest.approx(math.radians(30.0), rel=0.2)
+
+
 @pytest.fixture(scope="module")
 def loiter_flight():
     """Climb 30 m into a loiter 250 m ahead (radius 80 m), 70 s."""
