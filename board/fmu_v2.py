@@ -57,7 +57,13 @@ from board.fmu_pwm import FmuPwmSide
 from board.gpio import Gpio
 from board.i2c import I2cBus
 from board.spi import SpiBus
-from board.specs import FMU_V2, SENSOR_STAGES, BoardSpecData, model_class
+from board.specs import (
+    FMU_V2,
+    SENSOR_STAGES,
+    BoardSpecData,
+    model_class,
+    with_optional_devices,
+)
 from board.uart import Uart, UartConfig
 from firmware.platform import Platform
 from firmware.shell.line_editor import LineEditor
@@ -95,11 +101,14 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
                  host_clock: Any = None, uavcan_nodes: tuple[int | str, ...] = (),
                  gps_utc_start_ns: int | None = None,
-                 host_ports: tuple[str, ...] = ()) -> None:
+                 host_ports: tuple[str, ...] = (),
+                 extra_devices: tuple[str, ...] = ()) -> None:
         if firmware not in ("rcS", "sensors", "none"):
             raise ValueError(f"firmware must be 'rcS', 'sensors' or 'none', got {firmware!r}")
         super().__init__(name, seed)
         k = self.kernel
+        # an airframe's devices beyond the spec (an airspeed sensor), by name
+        spec = with_optional_devices(spec, tuple(extra_devices))
         self.spec = spec
         self.env = Environment()
         self.gpio = Gpio(k, f"{name}.gpio")

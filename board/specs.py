@@ -25,8 +25,8 @@ from typing import Any, Union
 
 __all__ = ["SpecError", "SpiDevice", "SpiBusSpec", "I2cDevice", "I2cBusSpec", "UartSpec",
            "AdcChannel", "PwmOutput", "CanSpec", "BoardSpecData", "DevicePlace", "DriverStart",
-           "FMU_V2", "IO_V2", "MS4525DO_AIRSPEED", "MODELS", "DRIVERS",
-           "STAGES", "SENSOR_STAGES", "model_class"]
+           "FMU_V2", "FMU_V2_OPTIONAL", "IO_V2", "MS4525DO_AIRSPEED", "MODELS", "DRIVERS",
+           "STAGES", "SENSOR_STAGES", "model_class", "with_optional_devices"]
 
 _PIN = re.compile(r"^P[A-K]\d{1,2}$")
 
@@ -491,10 +491,27 @@ FMU_V2 = BoardSpecData(
 #: The airspeed sensor of a fixed-wing's FMU: a TE MS4525DO (+-1 psi, output type A) at 0x28 on the
 #: external I2C connector, as the Pixhawk airspeed kits plug in. Not on the standard board (a
 #: quadrotor has none): ``FMU_V2.with_device("I2C1", MS4525DO_AIRSPEED)`` is the variant (a
-#: plane's airframe adds it: ``hil.airframes.FMU_EXTRA_DEVICES``).
+#: plane's airframe adds it by name: ``FmuV2Board(extra_devices=("ms4525",))``).
 MS4525DO_AIRSPEED = I2cDevice("ms4525", "ms4525do", 0x28, external=True,
                               about="airspeed sensor (differential pressure) on the external I2C",
                               driver="ms4525_airspeed")
+
+#: Devices an FMUv2 may carry beyond the stock set, by name -> (bus, entry): what an airframe
+#: adds (``hil.airframes.HostAirframe.fmu_devices``). Names, not specs, cross to the board's
+#: process, so that a lockstep trace can record the board's arguments as plain data.
+FMU_V2_OPTIONAL: dict[str, tuple[str, Device]] = {"ms4525": ("I2C1", MS4525DO_AIRSPEED)}
+
+
+def with_optional_devices(spec: BoardSpecData, names: tuple[str, ...]) -> BoardSpecData:
+    """``spec`` with the optional devices ``names`` (keys of :data:`FMU_V2_OPTIONAL`) added."""
+    for name in names:
+        try:
+            bus, device = FMU_V2_OPTIONAL[name]
+        except KeyError:
+            raise SpecError(f"no optional device {name!r}; known: "
+                            f"{', '.join(sorted(FMU_V2_OPTIONAL))}") from None
+        spec = spec.with_device(bus, device)
+    return spec
 
 
 #: Pixhawk 1 IO coprocessor (PX4 io-v2): facts from ../shared/reference/io-and-rc.md 3.1, 8.1.

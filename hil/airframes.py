@@ -17,8 +17,8 @@ from typing import Any
 
 from firmware import romfs
 
-__all__ = ["AirframeInfo", "CLASSES", "FMU_EXTRA_DEVICES", "HOST", "HostAirframe",
-           "all_airframes", "fmu_spec", "resolve"]
+__all__ = ["AirframeInfo", "CLASSES", "HOST", "HostAirframe", "all_airframes", "fmu_spec",
+           "resolve"]
 
 #: PX4's airframe ``@class`` -> the class ``hil airframes --json`` reports
 CLASSES: dict[str, str] = {"Copter": "multicopter", "Plane": "fixedwing", "VTOL": "vtol"}
@@ -29,17 +29,12 @@ class HostAirframe:
     """What the host needs to fly an airframe file."""
 
     world_model: str                    # key of hil.world.fdm.AIRFRAMES
-    #: devices added to the stock FMUv2 spec (board.specs device names), e.g. the airspeed
-    #: sensor a plane carries on the external I2C bus
+    #: devices added to the stock FMUv2 (keys of board.specs.FMU_V2_OPTIONAL), e.g. the
+    #: airspeed sensor a plane carries on the external I2C bus
     fmu_devices: tuple[str, ...] = ()
     #: other names ``--airframe`` accepts besides the id and the file's name
     aliases: tuple[str, ...] = ()
 
-
-#: devices an airframe may add to the FMU: name -> (bus, device entry of board.specs)
-FMU_EXTRA_DEVICES: dict[str, tuple[str, str]] = {
-    "ms4525": ("I2C1", "MS4525DO_AIRSPEED"),  # airspeed sensor on the external I2C
-}
 
 #: SYS_AUTOSTART -> host side. The generic quad flies the F450 model too (same motor order).
 HOST: dict[int, HostAirframe] = {
@@ -70,13 +65,9 @@ class AirframeInfo:
 
 def fmu_spec(host: HostAirframe) -> Any:
     """The FMU board's spec for this airframe: the stock FMUv2 with the airframe's devices."""
-    from board import specs
+    from board.specs import FMU_V2, with_optional_devices
 
-    spec = specs.FMU_V2
-    for name in host.fmu_devices:
-        bus, entry = FMU_EXTRA_DEVICES[name]
-        spec = spec.with_device(bus, getattr(specs, entry))
-    return spec
+    return with_optional_devices(FMU_V2, host.fmu_devices)
 
 
 def all_airframes() -> list[AirframeInfo]:

@@ -26,7 +26,7 @@ from typing import Any
 from hil.accuracy import TruthSample, estimator_accuracy
 from hil.airframes import resolve as airframe_info
 from hil.flight_checks import fixed_wing_checks
-from hil.gcs import GcsClient
+from hil.gcs import GcsClient, GcsTimeout
 from hil.missions import M_PER_DEG_LAT, SQUARE_NE, DefaultMission, mission_for
 from hil.native import active as native_active
 from hil.native import status as native_status
@@ -170,7 +170,14 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
             raise RuntimeError(f"mission upload refused (MISSION_ACK type {result})")
         phase(f"mission uploaded ({mission.description})",
               then="waiting for the safety switch to be off")
-        gcs.wait_for(lambda: _safety_off(orch), timeout_s=10.0)
+        try:
+            gcs.wait_for(lambda: _safety_off(orch), timeout_s=10.0)
+        except GcsTimeout:
+            rc, why = orch.call("fmu", "shell", "commander check")
+            raise RuntimeError("the safety switch stayed on: the IO takes the button only "
+                               "when the FMU is ready to arm; commander check says: "
+                               + " / ".join(ln.strip() for ln in why.splitlines()
+                                            if "Fail" in ln)) from None
         phase("safety switch off")
         progress.doing("arming")
         ack = gcs.arm(timeout_s=5.0)
@@ -339,7 +346,7 @@ def _plot(cfg: FlightConfig, mission: DefaultMission, altitude_m: float, rows: l
 def main(cfg: FlightConfig, as_json: bool = False) -> int:
     try:
         summary = fly(cfg)
-    except RuntimeError as exc:
+    except (RuntimeError, GcsTimeout) as exc:
         print(f"hil run: {exc}", file=sys.stderr)
         return 1
     if as_json:

@@ -7,8 +7,8 @@ the airframe's class (``hil.airframes``) and checks what a PX4 user looks at aga
 
 * multicopter: takeoff to 10 m, a square of four waypoints 20 m apart, return and land;
 * fixedwing: a runway takeoff northwards climbing to 50 m, a square of four waypoints 300 m
-  apart, a loiter south of home where the landing pattern starts, then a landing northwards
-  at home down PX4's 5 degree glide slope (50 m over ~570 m).
+  apart, a loiter at 30 m south of home where the landing pattern starts, then a landing
+  northwards at home (30 m over 400 m, within PX4's 5 degree glide slope).
 """
 
 from __future__ import annotations
@@ -73,7 +73,8 @@ SQUARE_NE = ((20.0, -10.0), (20.0, 10.0), (40.0, 10.0), (40.0, -10.0))
 FW_SQUARE_NE = ((400.0, 0.0), (400.0, 300.0), (100.0, 300.0), (100.0, 0.0))
 FW_ALT_M = 50.0
 #: the loiter that starts the landing pattern, on the runway line south of home
-FW_LOITER_NE = (-600.0, 0.0)
+FW_LOITER_NE = (-400.0, 0.0)
+FW_PATTERN_ALT_M = 30.0
 
 MISSIONS: dict[str, DefaultMission] = {
     "multicopter": DefaultMission(
@@ -87,7 +88,7 @@ MISSIONS: dict[str, DefaultMission] = {
         "fixed-wing circuit", FW_ALT_M,
         (Item(NAV_TAKEOFF, 300.0, 0.0, FW_ALT_M, param1=10.0),
          *(Item(NAV_WAYPOINT, n, e, FW_ALT_M) for n, e in FW_SQUARE_NE),
-         Item(NAV_LOITER_TIME, *FW_LOITER_NE, FW_ALT_M, param1=20.0),
+         Item(NAV_LOITER_TIME, *FW_LOITER_NE, FW_PATTERN_ALT_M, param1=10.0),
          Item(NAV_LAND, 0.0, 0.0, 0.0)),
         FW_SQUARE_NE,
         description="takeoff to 50 m, 4 waypoints 300 m apart, loiter, return and land"),

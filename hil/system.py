@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from board.wiring import CAN_ESC_NODES, PIXHAWK1, WORLD, Wire, uart_link, with_can_escs
-from hil.airframes import HOST, fmu_spec
+from hil.airframes import HOST
 from hil.devices import DeviceHub
 from hil.orchestrator import BoardSpec, Orchestrator
 from hil.rc import RcRig, Transmitter
@@ -117,7 +117,7 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
     # airframe id without an entry keeps the F450 and the stock board, e.g. SYS_AUTOSTART 0).
     host = HOST.get(cfg.airframe)
     if host is not None and host.fmu_devices:
-        fmu_kwargs["spec"] = fmu_spec(host)
+        fmu_kwargs["extra_devices"] = host.fmu_devices  # names: a trace records plain data
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
     world = WorldPorts(seed=cfg.seed, airframe=host.world_model if host is not None else "f450")
