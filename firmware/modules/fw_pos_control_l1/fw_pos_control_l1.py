@@ -45,9 +45,10 @@ from firmware.modules.fw_pos_control_l1.landing import (
     slope_aim_shift_m,
     slope_altitude,
 )
-from firmware.modules.fw_pos_control_l1.params import PARAMS
+from firmware.modules.fw_pos_control_l1.params import PARAMS, apply_tecs_params
 from firmware.modules.fw_pos_control_l1.state import Out as _Out
 from firmware.modules.fw_pos_control_l1.state import State as _State
+from firmware.modules.fw_pos_control_l1.state import fill_tecs_status
 from firmware.modules.fw_pos_control_l1.takeoff import LaunchDetector, RunwayTakeoff
 from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
 from firmware.modules.mc_pos_control.geo import MapProjection
@@ -161,25 +162,7 @@ class FwPosControlL1Module(WorkItemModule):
         self.l1.set_period(v["FW_L1_PERIOD"])
         self.l1.set_damping(v["FW_L1_DAMPING"])
         self.l1.set_roll_limit(v["FW_R_LIM"] * _D2R)
-        tp = self.tecs.p
-        tp.time_const_s = v["FW_T_TIME_CONST"]
-        tp.throttle_time_const_s = v["FW_T_THRO_CONST"]
-        tp.alt_error_tc_s = v["FW_T_ALT_TC"]
-        tp.tas_error_tc_s = v["FW_T_TAS_TC"]
-        tp.hgt_rate_ff = v["FW_T_HRATE_FF"]
-        tp.climb_max_m_s = v["FW_T_CLMB_MAX"]
-        tp.sink_min_m_s = v["FW_T_SINK_MIN"]
-        tp.sink_max_m_s = v["FW_T_SINK_MAX"]
-        tp.throttle_damp = v["FW_T_THR_DAMP"]
-        tp.pitch_damp = v["FW_T_PTCH_DAMP"]
-        tp.integ_gain = v["FW_T_INTEG_GAIN"]
-        tp.vert_accel_max_m_s2 = v["FW_T_VERT_ACC"]
-        tp.speed_weight = v["FW_T_SPDWEIGHT"]
-        tp.roll_to_throttle = v["FW_T_RLL2THR"]
-        tp.spd_omega = v["FW_T_SPD_OMEGA"]
-        tp.airspeed_min_m_s = v["FW_AIRSPD_MIN"]
-        tp.airspeed_trim_m_s = v["FW_AIRSPD_TRIM"]
-        tp.airspeed_max_m_s = v["FW_AIRSPD_MAX"]
+        apply_tecs_params(v, self.tecs.p)
         self.airspeed.use = int(v["FW_ARSP_MODE"]) == 0
 
     # -- inputs ------------------------------------------------------------------------------
@@ -309,7 +292,8 @@ class FwPosControlL1Module(WorkItemModule):
     def _new_setpoint(self, st: _State, cur: Any) -> None:
         """Remember where the current setpoint became current (the line's start when there is
         no previous waypoint, the landing's entry altitude, the takeoff's runway)."""
-        key = (float(cur.lat), float(cur.lon), float(cur.alt), int(cur.type))
+        a = float(cur.alt)
+        key = (float(cur.lat), float(cur.lon), a if math.isfinite(a) else -1e9, int(cur.type))
         if key == self.sp_key:
             return
         self.sp_key = key
@@ -328,9 +312,10 @@ class FwPosControlL1Module(WorkItemModule):
         cur = trip.current
         v = self.pv
         thr_min, thr_max, p_min, p_max = self._limits()
-        if not cur.valid or not (math.isfinite(cur.lat) and math.isfinite(cur.lon)):
-            self.l1.navigate_level_flight(st.yaw)
-            return self._idle(st)
+        if not cur.valid or not (math.isfinite(cur.lat) and math.isfinite(cur.lon)) \
+                or (int(cur.type) == SP_LAND and not math.isfinite(float(cur.alt))):
+            return self._hold(st)   # nowhere to go (or no ground to land on)
+        self.hold_alt = math.nan
         self._new_setpoint(st, cur)
         target = self._ne(cur.lat, cur.lon)
         prev = trip.previous
@@ -357,9 +342,31 @@ class FwPosControlL1Module(WorkItemModule):
             self.l1.navigate_loiter(target, st.pos, radius, direction, st.vel, st.yaw)
         else:
             self.l1.navigate_waypoints(prev_ne, target, st.pos, st.vel, st.yaw)
-        self._tecs(st, float(cur.alt), v_sp, thr_min, thr_max, thr_cruise, p_min, p_max)
+        self._tecs(st, self._alt_sp(cur, st), v_sp, thr_min, thr_max, thr_cruise, p_min, p_max)
         return _Out(self.l1.nav_roll(), self.tecs.pitch_sp, self.l1.nav_bearing_rad,
                     self.tecs.throttle_sp, target)
+
+    def _alt_sp(self, cur: Any, st: _State) -> float:
+        """The setpoint's altitude; a NaN one (PX4: "keep the altitude") holds the altitude
+        the aircraft had when the setpoint became current."""
+        a = float(cur.alt)
+        return a if math.isfinite(a) else self.sp_start_alt
+
+    def _hold(self, st: _State) -> _Out:
+        """No usable setpoint: on the ground idle; in the air wings level on the heading at
+        the altitude it had, at trim speed, until the navigator says otherwise (gliding down
+        with the motor off, PX4's IDLE, is for an IDLE setpoint only)."""
+        if self.landed or not self.armed:
+            self.l1.navigate_level_flight(st.yaw)
+            return self._idle(st)
+        if not math.isfinite(self.hold_alt):   # continue from the demand TECS was flying
+            self.hold_alt = self.tecs.hgt_sp_adj if self.tecs.initialised else st.alt
+        v = self.pv
+        thr_min, thr_max, p_min, p_max = self._limits()
+        self.l1.navigate_level_flight(st.yaw)
+        self._tecs(st, self.hold_alt, v["FW_AIRSPD_TRIM"], thr_min, thr_max,
+                   v["FW_THR_CRUISE"], p_min, p_max)
+        return _Out(0.0, self.tecs.pitch_sp, st.yaw, self.tecs.throttle_sp, None)
 
     def _idle(self, st: _State) -> _Out:
         self.tecs.reset()
@@ -378,7 +385,7 @@ class FwPosControlL1Module(WorkItemModule):
             hdg = math.atan2(target[1] - start[1], target[0] - start[0])
         line_end = (target if far else
                     (start[0] + 5000.0 * math.cos(hdg), start[1] + 5000.0 * math.sin(hdg)))
-        alt_err = float(cur.alt) - st.alt
+        alt_err = self._alt_sp(cur, st) - st.alt
         climbout = alt_err > v["FW_CLMBOUT_DIFF"]
         if not self.armed:
             self.l1.navigate_level_flight(st.yaw)
@@ -420,7 +427,7 @@ class FwPosControlL1Module(WorkItemModule):
                     thr = 0.0 if self.launch.detected_us < 0 else v["FW_THR_IDLE"]
                     return _Out(0.0, v["FW_TKO_PITCH_MIN"] * _D2R, st.yaw, thr, target)
             self.l1.navigate_waypoints(start, line_end, st.pos, st.vel, st.yaw)
-        self._tecs(st, float(cur.alt), v["FW_AIRSPD_TRIM"], thr_min, thr_max, thr_cruise,
+        self._tecs(st, self._alt_sp(cur, st), v["FW_AIRSPD_TRIM"], thr_min, thr_max, thr_cruise,
                    p_min, p_max, climbout=climbout)
         roll = _clamp(self.l1.nav_roll(), -roll_lim, roll_lim)
         return _Out(roll, self.tecs.pitch_sp, self.l1.nav_bearing_rad, self.tecs.throttle_sp,
@@ -564,20 +571,9 @@ class FwPosControlL1Module(WorkItemModule):
         c.yaw_acceptance = c.altitude_acceptance = math.nan
         c.type = int(self.trip.current.type) if self.ctrl == CTRL_AUTO else 0
         self.pub_pcs.publish(c)
-        s, t = self.tecs.status, self.tecs_msg
-        t.timestamp = now
-        t.altitude_sp, t.altitude_filtered = s.altitude_sp_m, s.altitude_filtered_m
-        t.height_rate_setpoint, t.height_rate = s.height_rate_sp_m_s, s.height_rate_m_s
-        t.true_airspeed_sp, t.true_airspeed_filtered = s.tas_sp_m_s, s.tas_filtered_m_s
-        t.true_airspeed_derivative_sp = s.tas_rate_sp_m_s2
-        t.true_airspeed_derivative = s.tas_rate_m_s2
-        t.total_energy_error, t.total_energy_rate_error = s.ste_error, s.ste_rate_error
-        t.energy_distribution_error = s.seb_error
-        t.energy_distribution_rate_error = s.seb_rate_error
-        t.throttle_integ, t.pitch_integ = s.throttle_integ, s.pitch_integ
-        t.throttle_sp, t.pitch_sp_rad = out.throttle, out.pitch
-        t.airspeed_valid = self.airspeed.valid
-        t.mode = self.tecs_mode
+        t = self.tecs_msg
+        fill_tecs_status(t, self.tecs.status, now, out.throttle, out.pitch, self.airspeed.valid,
+                         self.tecs_mode)
         self.pub_tecs.publish(t)
 
     def status_lines(self) -> list[str]:

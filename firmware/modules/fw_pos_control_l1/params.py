@@ -3,12 +3,14 @@ takeoff (runway: RWTO_*, hand/catapult launch: LAUN_*) and landing (FW_LND_*).""
 
 from __future__ import annotations
 
-from typing import Final
+from collections.abc import Mapping
+from typing import Any, Final
 
+from firmware.lib.tecs import TecsParams
 from firmware.modules.fw_att_control.params import SHARED_PARAMS
 from firmware.platform.params import ParamDef
 
-__all__ = ["PARAMS"]
+__all__ = ["PARAMS", "apply_tecs_params"]
 
 _GL: Final = "FW L1 Control"
 _GT: Final = "FW TECS"
@@ -95,3 +97,25 @@ _OWN: Final[tuple[ParamDef, ...]] = (
 )
 
 PARAMS: Final[tuple[ParamDef, ...]] = SHARED_PARAMS + _OWN
+
+
+def apply_tecs_params(v: Mapping[str, Any], tp: TecsParams) -> None:
+    """Hand TECS its FW_T_* and FW_AIRSPD_* values (the parameter names stay here)."""
+    tp.time_const_s = v["FW_T_TIME_CONST"]
+    tp.throttle_time_const_s = v["FW_T_THRO_CONST"]
+    tp.alt_error_tc_s = v["FW_T_ALT_TC"]
+    tp.tas_error_tc_s = v["FW_T_TAS_TC"]
+    tp.hgt_rate_ff = v["FW_T_HRATE_FF"]
+    tp.climb_max_m_s = v["FW_T_CLMB_MAX"]
+    tp.sink_min_m_s = v["FW_T_SINK_MIN"]
+    tp.sink_max_m_s = v["FW_T_SINK_MAX"]
+    tp.throttle_damp = v["FW_T_THR_DAMP"]
+    tp.pitch_damp = v["FW_T_PTCH_DAMP"]
+    tp.integ_gain = v["FW_T_INTEG_GAIN"]
+    tp.vert_accel_max_m_s2 = v["FW_T_VERT_ACC"]
+    tp.speed_weight = v["FW_T_SPDWEIGHT"]
+    tp.roll_to_throttle = v["FW_T_RLL2THR"]
+    tp.spd_omega = v["FW_T_SPD_OMEGA"]
+    tp.airspeed_min_m_s = v["FW_AIRSPD_MIN"]
+    tp.airspeed_trim_m_s = v["FW_AIRSPD_TRIM"]
+    tp.airspeed_max_m_s = v["FW_AIRSPD_MAX"]

@@ -134,3 +134,26 @@ def test_approach_repositions_when_the_landing_starts_past_the_point():
     ap.reset()
     assert ap.update((-1500.0, 0.0), (16.0, 0.0), (0.0, 0.0), north, 600.0, 60.0) \
         == APP_ON_SLOPE
+
+
+def test_nan_altitude_and_invalid_setpoints_hold_the_altitude():
+    """A setpoint with a NaN altitude (PX4: keep the altitude) holds the one the plane had; an
+    invalid current setpoint in the air holds altitude and heading on the motor, never a
+    glide or a NaN control; a NaN landing altitude is not landed on."""
+    rig = FwRig(agl_m=100.0, airspeed_m_s=16.0)
+    rig.set_landed(False)
+    rig.arm(True)
+    rig.set_mode("auto")
+    rig.set_setpoint(0, 2000.0, 0.0, math.nan, prev=(0.0, 0.0, 0.0))
+    hs: list[float] = []
+    rig.run(6.0, lambda r: hs.append(r.local()[2]), every_n=100)
+    m = rig.trip_msg
+    m.current.valid = False
+    m.timestamp = m.current.timestamp = rig.now_us()
+    rig.pub_trip.publish(m)
+    rig.run(6.0, lambda r: hs.append(r.local()[2]), every_n=100)
+    rig.set_setpoint(4, 600.0, 0.0, math.nan, prev=(0.0, 0.0, 0.0))    # SP_LAND, no altitude
+    rig.run(6.0, lambda r: hs.append(r.local()[2]), every_n=100)
+    c = rig.topic("actuator_controls_0").control
+    assert all(math.isfinite(x) for x in c[:4]) and c[3] > 0.2
+    assert max(abs(h) for h in hs) < 3.0, (min(hs), max(hs))
