@@ -9,8 +9,9 @@ it had when the landing began, then it follows it. Below ``FW_LND_FLALT`` above 
 point the flare starts and is never left (PX4's "no return"): height demand below the ground
 with an exponential approach whose time constant makes the sink rate at the flare's start
 continuous and leaves ~0.3 m/s at touchdown, the pitch between ``FW_LND_FL_PMIN`` and
-``FW_LND_FL_PMAX``, the throttle at ``FW_THR_MIN`` and the speed left to bleed off (speed weight 0). From ``FW_LND_TLALT`` (or the
-flare altitude when it is -1) the throttle is limited to ``FW_THR_LND_MAX``.
+``FW_LND_FL_PMAX``, the throttle at ``FW_THR_MIN`` and the speed left to bleed off (speed weight
+0). From ``FW_LND_TLALT`` (or the flare altitude when it is -1) the throttle is limited to
+``FW_THR_LND_MAX``.
 """
 
 from __future__ import annotations
