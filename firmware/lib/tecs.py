@@ -121,12 +121,13 @@ class Tecs:
 
     # -- state estimates ---------------------------------------------------------------------------
 
-    def _update_airspeed(self, dt: float, tas: float, accel_x: float, valid: bool) -> None:
+    def _update_airspeed(self, dt: float, tas: float, accel_x: float, valid: bool,
+                         eas2tas: float) -> None:
         """Complementary filter of true airspeed and longitudinal acceleration (less noise and
         lag than either alone; crossover ``FW_T_SPD_OMEGA``)."""
         p = self.p
         if not valid or not math.isfinite(tas):
-            self.tas_state = p.airspeed_trim_m_s
+            self.tas_state = p.airspeed_trim_m_s * eas2tas
             self.tas_rate_state = 0.0
             return
         if not self.initialised:
@@ -146,16 +147,23 @@ class Tecs:
                hgt_sp_m: float, tas_sp_m_s: float, throttle_min: float, throttle_max: float,
                throttle_cruise: float, pitch_min_rad: float, pitch_max_rad: float,
                climbout: bool = False, climbout_pitch_min_rad: float = 0.0,
-               speed_weight: float | None = None, alt_tc_s: float | None = None) -> None:
+               speed_weight: float | None = None, alt_tc_s: float | None = None,
+               eas2tas: float = 1.0) -> None:
         """One step: :attr:`throttle_sp` (0..1) and :attr:`pitch_sp` (rad) from the state and
         the demands. ``speed_weight`` and ``alt_tc_s`` override the parameters for one call
-        (the landing flare trades speed for height with its own time constant)."""
+        (the landing flare trades speed for height with its own time constant).
+
+        Airspeeds: ``tas_m_s`` is true airspeed (the kinetic energy's), while the setpoint and
+        the FW_AIRSPD_* limits are equivalent airspeeds, as a pilot and PX4 give them (the
+        stall speed is one): they are multiplied by ``eas2tas`` (the airspeed module's true
+        over indicated) before use."""
         p = self.p
         dt = _clamp(dt, 0.001, 0.2)
-        self._update_airspeed(dt, tas_m_s, accel_x_m_s2, airspeed_valid)
+        k = eas2tas if math.isfinite(eas2tas) and 0.5 < eas2tas < 2.0 else 1.0
+        self._update_airspeed(dt, tas_m_s, accel_x_m_s2, airspeed_valid, k)
         if not self.initialised:
             self.hgt_sp_adj = self.hgt_sp_adj_prev = altitude_m
-            self.tas_sp_adj = self.tas_state if airspeed_valid else p.airspeed_trim_m_s
+            self.tas_sp_adj = self.tas_state if airspeed_valid else p.airspeed_trim_m_s * k
             self.last_pitch_sp = pitch_rad
             self.last_throttle = throttle_cruise
             self.throttle_integ = 0.0
@@ -166,13 +174,13 @@ class Tecs:
         ste_rate_min = -G * p.sink_min_m_s
 
         # airspeed demand: limits, climb-out at the minimum, rate limited by the throttle range
-        v_min, v_max = p.airspeed_min_m_s, max(p.airspeed_max_m_s, p.airspeed_min_m_s)
-        tas_sp = _clamp(tas_sp_m_s if math.isfinite(tas_sp_m_s) else p.airspeed_trim_m_s,
+        v_min, v_max = p.airspeed_min_m_s * k, max(p.airspeed_max_m_s, p.airspeed_min_m_s) * k
+        tas_sp = _clamp((tas_sp_m_s if math.isfinite(tas_sp_m_s) else p.airspeed_trim_m_s) * k,
                         v_min, v_max)
         if climbout:
             tas_sp = v_min
         if not airspeed_valid:
-            tas_sp = p.airspeed_trim_m_s
+            tas_sp = p.airspeed_trim_m_s * k
         vel_rate_max = 0.5 * ste_rate_max / tas
         vel_rate_min = 0.5 * ste_rate_min / tas
         self.tas_sp_adj = _clamp(tas_sp, self.tas_sp_adj + vel_rate_min * dt,

@@ -276,7 +276,9 @@ class FwPosControlL1Module(WorkItemModule):
                          throttle_cruise=thr_cruise, pitch_min_rad=pitch_min,
                          pitch_max_rad=pitch_max, climbout=climbout,
                          climbout_pitch_min_rad=v["FW_TKO_PITCH_MIN"] * _D2R,
-                         speed_weight=speed_weight, alt_tc_s=alt_tc)
+                         speed_weight=speed_weight, alt_tc_s=alt_tc,
+                         eas2tas=(asp.true_m_s / asp.indicated_m_s
+                                  if asp.valid and asp.indicated_m_s > 3.0 else 1.0))
         if self.tecs.underspeed:
             self.tecs_mode = 1
         elif climbout:

@@ -133,3 +133,18 @@ def test_reset_clears_integrators():
     assert tecs.initialised
     tecs.reset()
     assert not tecs.initialised and tecs.throttle_integ == 0.0 and tecs.pitch_integ == 0.0
+
+
+def test_airspeed_setpoint_and_limits_are_equivalent_airspeeds():
+    """At altitude the same indicated (equivalent) airspeed is a higher true airspeed: TECS
+    flies the setpoint times eas2tas in true airspeed."""
+    tecs, pm = Tecs(), PointMass(h=50.0)
+    for _ in range(round(40.0 / 0.02)):
+        tecs.update(0.02, altitude_m=pm.h, height_rate_m_s=pm.vz_up, tas_m_s=pm.v,
+                    airspeed_valid=True, accel_x_m_s2=pm.accel_x, pitch_rad=pm.pitch,
+                    roll_rad=0.0, hgt_sp_m=50.0, tas_sp_m_s=15.0, throttle_min=0.0,
+                    throttle_max=1.0, throttle_cruise=0.5, pitch_min_rad=-0.5,
+                    pitch_max_rad=0.5, eas2tas=1.1)
+        pm.step(tecs.throttle_sp, tecs.pitch_sp, 0.02)
+    assert pm.v == pytest.approx(16.5, abs=0.3)
+    assert tecs.status.tas_sp_m_s == pytest.approx(16.5)
