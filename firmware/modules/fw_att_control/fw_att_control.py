@@ -286,7 +286,10 @@ class FwAttControlModule(WorkItemModule):
         pitch_sp = _clamp(self.pitch_sp, self.p_lim_min, self.p_lim_max)
         roll_dot = _clamp((roll_sp - roll) / self.r_tc, -self.r_rmax, self.r_rmax)
         pitch_dot = _clamp((pitch_sp - pitch) / self.p_tc, -self.p_rmax_neg, self.p_rmax_pos)
-        yaw_dot = _clamp(coordinated_yaw_rate(roll, pitch, v), -self.y_rmax, self.y_rmax)
+        # the turn rate of a bank is the true airspeed's (the scaler above is the dynamic
+        # pressure's, i.e. the indicated airspeed's)
+        v_true = (max(self.airspeed.true_m_s, self.v_min) if self.airspeed.valid else v)
+        yaw_dot = _clamp(coordinated_yaw_rate(roll, pitch, v_true), -self.y_rmax, self.y_rmax)
         p_sp, q_sp, r_sp = euler_rates_to_body(roll, pitch, roll_dot, pitch_dot, yaw_dot)
         # rate loops
         integrate = self.armed and not self.landed
