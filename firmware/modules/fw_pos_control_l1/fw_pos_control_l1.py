@@ -298,7 +298,9 @@ class FwPosControlL1Module(WorkItemModule):
         key = (float(cur.lat), float(cur.lon), a if math.isfinite(a) else -1e9, int(cur.type))
         if key == self.sp_key:
             return
-        self.sp_key = key
+        old, self.sp_key = self.sp_key, key
+        if old[3] == key[3] and old[0] == key[0] and old[1] == key[1]:
+            return   # only the altitude changed: the same takeoff run, approach or flare
         self.sp_start_ne = st.pos
         self.sp_start_alt = st.alt
         self.sp_start_yaw = st.yaw

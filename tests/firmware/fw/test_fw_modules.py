@@ -158,17 +158,25 @@ def test_runway_takeoff_holds_heading_and_climbs_out():
         n, e, h = r.local()
         if h > 2.0 and r.land_msg.landed:
             r.set_landed(False)
-        rows.append((tr.t_ns * 1e-9, n, e, h, tr.airspeed_m_s, tr.aoa_rad, tr.agl_m))
+        sp = r.topic("vehicle_attitude_setpoint")
+        rows.append((tr.t_ns * 1e-9, n, e, h, tr.airspeed_m_s, tr.aoa_rad, tr.agl_m,
+                     sp.thrust_body[0] if sp else 0.0))
 
-    rig.run(25.0, log, every_n=100)
+    rig.run(1.5, log, every_n=100)
+    # the navigator raises the takeoff altitude during the ground roll: the same takeoff goes
+    # on (no new throttle ramp)
+    rig.set_setpoint(SP_TAKEOFF, 0.0, 0.0, 35.0, yaw=0.0)
+    rig.run(23.5, log, every_n=100)
     liftoff = next(r for r in rows if r[6] > 0.5)
+    ramp = [r[7] for r in rows if r[0] < liftoff[0]]
+    assert all(b >= a for a, b in zip(ramp, ramp[1:]))
     ground = [r for r in rows if r[0] < liftoff[0]]
     print(f"\nrunway takeoff: lift-off at {liftoff[0]:.1f} s, {liftoff[1]:.0f} m down the "
           f"runway at {liftoff[4]:.1f} m/s")
     # no lift-off before the rotation speed, FW_AIRSPD_MIN * RWTO_AIRSPD_SCL
     assert liftoff[4] > PLANE_PARAMS["FW_AIRSPD_MIN"] * 1.3 - 0.5
     assert max(abs(r[2]) for r in ground) < 3.0            # on the runway's centre line
-    assert abs(rows[-1][3] - 30.0) < 3.0
+    assert abs(rows[-1][3] - 35.0) < 3.0
     assert max(r[5] for r in rows if r[4] > 8.0) < STALL_AOA_RAD
 
 
