@@ -53,3 +53,25 @@ def ctrl_c_reaches_child() -> None:
     where SIGINT was not ignored)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def shared_across_workers(tmp_path_factory, worker_id: str, key: str, make):
+    """``make()``'s result (picklable), computed once per test session even when pytest-xdist
+    spreads a module's tests over workers: a module fixture is set up on each worker that runs
+    one of its tests, and an end-to-end flight costs minutes of CPU. The first worker computes
+    under a file lock in the session's shared temporary folder and leaves the result there; the
+    others read it (pytest-xdist's documented pattern for session-wide fixtures)."""
+    import fcntl
+    import pickle
+
+    if worker_id == "master":                      # no xdist: compute here
+        return make()
+    shared = tmp_path_factory.getbasetemp().parent
+    result_file = shared / f"{key}.pickle"
+    with open(shared / f"{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)           # released when the file closes
+        if result_file.exists():
+            return pickle.loads(result_file.read_bytes())
+        result = make()
+        result_file.write_bytes(pickle.dumps(result))
+        return result

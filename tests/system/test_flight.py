@@ -7,9 +7,7 @@ the mission, the world's truth and the FMU's own log.
 
 from __future__ import annotations
 
-import fcntl
 import filecmp
-import pickle
 import re
 
 import numpy as np
@@ -19,6 +17,7 @@ import pyulog
 from hil.accuracy import TruthSample, estimator_accuracy
 from firmware.version import os_version_word, version_word
 from hil.flight import FlightConfig, fly
+from tests.helpers import shared_across_workers
 
 pytestmark = pytest.mark.slow
 
@@ -31,22 +30,9 @@ def _fly(tmp_path_factory, seed: int, name: str, can_escs: bool = False) -> dict
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory, worker_id):
-    """The seed-1 flight, flown once per test session. pytest-xdist may spread this module's
-    tests over both workers, and a module fixture is then set up on each: two flights of the
-    same seed, minutes of CPU for nothing. So the first worker flies under a file lock in the
-    session's shared temporary folder and leaves its summary there, and the other reads it
-    (pytest-xdist's documented pattern for session-wide fixtures)."""
-    if worker_id == "master":                      # no xdist: an ordinary module fixture
-        return _fly(tmp_path_factory, 1, "seed1")
-    shared = tmp_path_factory.getbasetemp().parent
-    summary_file = shared / "seed1_flight.pickle"
-    with open(shared / "seed1_flight.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)           # released when the file closes
-        if summary_file.exists():
-            return pickle.loads(summary_file.read_bytes())
-        summary = _fly(tmp_path_factory, 1, "seed1")
-        summary_file.write_bytes(pickle.dumps(summary))
-        return summary
+    """The seed-1 flight, flown once per test session (tests.helpers.shared_across_workers)."""
+    return shared_across_workers(tmp_path_factory, worker_id, "seed1_flight",
+                                 lambda: _fly(tmp_path_factory, 1, "seed1"))
 
 
 def _phase(summary: dict, prefix: str) -> float:

@@ -46,12 +46,14 @@ DEFAULT: Final = _t(
     ("manual_control_setpoint", 20),
     ("mission", 0),
     ("parameter_update", 0),
+    ("position_controller_status", 5),  # a plane's L1 guidance (acceptance radius, track)
     ("position_setpoint_triplet", 5),
     ("rc_channels", 10),
     ("safety", 0),
     ("sensor_accel", 50), ("sensor_gyro", 50), ("sensor_mag", 10), ("sensor_baro", 10),
     ("sensor_combined", 100),
     ("sensor_gps", 10), ("vehicle_gps_position", 10),
+    ("tecs_status", 10),          # a plane's energy control; absent on a multicopter
     ("telemetry_status", 1),
     ("vehicle_air_data", 5),
     ("vehicle_angular_velocity", 50),
@@ -65,6 +67,7 @@ DEFAULT: Final = _t(
     ("vehicle_magnetometer", 10),
     ("vehicle_rates_setpoint", 50),
     ("vehicle_status", 0),
+    ("vtol_vehicle_status", 10),  # a VTOL's mode and transitions
 )
 
 #: estimator and control loops at full rate (PX4's "high rate" option)
