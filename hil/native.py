@@ -64,7 +64,8 @@ FAST_MODULES: tuple[str, ...] = (
     "firmware/platform/perf.py", "firmware/platform/task.py", "firmware/platform/module.py",
     # the drivers of the sensors above and of the IO link
     "firmware/drivers/device.py", "firmware/drivers/imu/mpu6000.py",
-    "firmware/drivers/imu/l3gd20.py", "firmware/drivers/imu/lsm303d.py",
+    "firmware/drivers/imu/st_spi_driver.py", "firmware/drivers/imu/l3gd20.py",
+    "firmware/drivers/imu/lsm303d.py",
     "firmware/drivers/magnetometer/hmc5883.py", "firmware/drivers/px4io/link.py",
     "firmware/drivers/px4io/driver.py",
     # the modules that run on every IMU sample

@@ -17,7 +17,9 @@ a burst of all 0xFF (bad transfer: the chip is gone; 10 in a row reset it), a te
 outside -40..85 degC (garbage data), a configuration register that changed (rewritten) or a
 wrong WHO_AM_I (reset; refused after the reset if it stays wrong), identical samples for
 ``STUCK_SAMPLES`` reads (frozen data: reset), STATUS overrun (missed samples), samples at the
-16-bit limits (clip counters, saturation warning), a missing data-ready interrupt.
+16-bit limits (clip counters, saturation warning), a missing data-ready interrupt. The life
+cycle, the bus helpers and the error handling it shares with the LSM303D driver live in
+:mod:`firmware.drivers.imu.st_spi_driver`.
 """
 
 from __future__ import annotations
@@ -29,8 +31,14 @@ from typing import Any, Final
 
 from board.gpio import Pin
 from board.spi import SpiHandle
-from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
-from firmware.drivers.imu import rotation_matrix
+from firmware.drivers.device import BUS_TYPE_SPI, DeviceId
+from firmware.drivers.imu.st_spi_driver import (
+    STATE_READ,
+    STUCK_SAMPLES,
+    RegCheck,
+    StSpiDriver,
+    exact,
+)
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
 
@@ -41,64 +49,64 @@ DRV_GYR_DEVTYPE_L3GD20: Final = 0x22
 #: Legacy PX4 device number of the gyro on SPI1 (reference sheet 7.3), the id's address byte.
 SPI_DEVICE_GYRO: Final = 1
 
-WHO_AM_I: Final = 0x0F
+# Registers and bits, in the datasheet's names (reference sheet 2.4, 2.5).
 CTRL_REG1: Final = 0x20
+CTRL_REG1_DR_760HZ: Final = 0xC0                  # DR = 11
+CTRL_REG1_BW_50HZ: Final = 0x20                   # BW = 10: 50 Hz cut-off at 760 Hz
+CTRL_REG1_PD: Final = 0x08                        # normal mode (not power-down)
+CTRL_REG1_XYZ_EN: Final = 0x07                    # Zen | Xen | Yen
 CTRL_REG2: Final = 0x21
 CTRL_REG3: Final = 0x22
+CTRL_REG3_I2_DRDY: Final = 0x08                   # data-ready on DRDY/INT2
 CTRL_REG4: Final = 0x23
+CTRL_REG4_BDU: Final = 0x80
+CTRL_REG4_FS_2000DPS: Final = 0x30                # FS = 11
 CTRL_REG5: Final = 0x24
+CTRL_REG5_BOOT: Final = 0x80
+CTRL_REG5_FIFO_EN: Final = 0x40
+OUT_TEMP: Final = 0x26                            # OUT_TEMP, STATUS_REG, OUT_X_L .. OUT_Z_H
+STATUS_REG_ZYXDA: Final = 0x08
+STATUS_REG_ZYXOR: Final = 0x80
 FIFO_CTRL_REG: Final = 0x2E
-LOW_ODR: Final = 0x39
+FIFO_CTRL_REG_FM_BYPASS: Final = 0x00
+#: L3GD20H registers PX4 writes on any part ("disable I2C", sheet 2.8): bit 5 of 0x05, and
+#: LOW_ODR.I2C_dis; the L3GD20 stores them silently.
 I2C_DISABLE_REG: Final = 0x05
-DIR_READ: Final = 0x80
-ADDR_INCREMENT: Final = 0x40
-STATUS_ZYXDA: Final = 0x08
-STATUS_ZYXOR: Final = 0x80
+I2C_DISABLE_BIT: Final = 0x20
+LOW_ODR: Final = 0x39
+LOW_ODR_I2C_DIS: Final = 0x08
 
 ACCEPTED_IDS: Final = {0xD4: "L3GD20", 0xD7: "L3GD20H", 0xD3: "L3G4200D"}
-#: PX4's configuration sequence (sheet 2.8 step 3), in order.
-CONFIG_SEQUENCE = ((CTRL_REG1, 0x0F), (CTRL_REG2, 0x00), (CTRL_REG3, 0x08), (CTRL_REG4, 0x80),
-                   (CTRL_REG5, 0x00), (CTRL_REG5, 0x40), (FIFO_CTRL_REG, 0x00),
-                   (CTRL_REG1, 0xEF), (CTRL_REG4, 0xB0))
-#: Registers checked one per cycle, with their expected values (WHO_AM_I added at probe).
-CHECKED = ((CTRL_REG1, 0xEF), (CTRL_REG2, 0x00), (CTRL_REG3, 0x08), (CTRL_REG4, 0xB0),
-           (CTRL_REG5, 0x40), (FIFO_CTRL_REG, 0x00), (LOW_ODR, 0x08))
+#: PX4's configuration sequence (sheet 2.8 step 3), in order: 0x0F, 0x00, 0x08, 0x80, 0x00,
+#: 0x40, 0x00, then 0xEF (760 Hz / 50 Hz) and 0xB0 (BDU, 2000 dps).
+CONFIG_SEQUENCE: Final[tuple[tuple[int, int], ...]] = (
+    (CTRL_REG1, CTRL_REG1_PD | CTRL_REG1_XYZ_EN),
+    (CTRL_REG2, 0x00),
+    (CTRL_REG3, CTRL_REG3_I2_DRDY),
+    (CTRL_REG4, CTRL_REG4_BDU),
+    (CTRL_REG5, 0x00),
+    (CTRL_REG5, CTRL_REG5_FIFO_EN),
+    (FIFO_CTRL_REG, FIFO_CTRL_REG_FM_BYPASS),
+    (CTRL_REG1, CTRL_REG1_DR_760HZ | CTRL_REG1_BW_50HZ | CTRL_REG1_PD | CTRL_REG1_XYZ_EN),
+    (CTRL_REG4, CTRL_REG4_BDU | CTRL_REG4_FS_2000DPS),
+)
+#: Registers checked one per cycle, each against the last value the sequence (or the I2C
+#: disabling) wrote (WHO_AM_I is added at probe).
+CHECKED: Final[tuple[RegCheck, ...]] = tuple(
+    exact(addr, value) for addr, value in dict(CONFIG_SEQUENCE).items()
+) + (exact(LOW_ODR, LOW_ODR_I2C_DIS),)
 
 ODR_HZ: Final = 760
 SCALE_RAD_S: Final = 70e-3 * math.pi / 180.0     # 2000 dps: 70 mdps per digit
 POLL_US: Final = 715                              # PX4: 1/760 s - 600 us
 BOOT_WAIT_US: Final = 10_000
-RESET_RETRY_US: Final = 100_000
 DRDY_TIMEOUT_US: Final = 3 * 1_000_000 // ODR_HZ  # three sample periods without an edge
-BAD_TRANSFERS_RESET: Final = 10
-STUCK_SAMPLES: Final = 50
-REPORT_INTERVAL_US: Final = 10_000_000            # repeat a dmesg line at most every 10 s
-
-STATE_RESET, STATE_WAIT_FOR_RESET, STATE_CONFIGURE, STATE_READ = range(4)
-
-
-def sensor_to_board(rotation: int | str | Sequence[Sequence[float]] | None,
-                    where: str) -> tuple[tuple[float, ...], ...] | None:
-    """A PX4 rotation enum/name or a 3x3 sensor->board matrix as a matrix (None: identity)."""
-    if rotation is None or isinstance(rotation, (int, str)):
-        return None if rotation is None else rotation_matrix(rotation)
-    rows = tuple(tuple(float(v) for v in row) for row in rotation)
-    if len(rows) != 3 or any(len(r) != 3 for r in rows):
-        raise ValueError(f"{where}: rotation must be a PX4 enum or a 3x3 sensor->board matrix, "
-                         f"got {rotation!r}")
-    return rows
-
 
 #: Three little-endian int16 from an offset: the X/Y/Z output block in one C call.
 _XYZ_LE: Final = struct.Struct("<3h").unpack_from
 
 
-def _s16(lo: int, hi: int) -> int:
-    v = lo | (hi << 8)
-    return v - 0x10000 if v & 0x8000 else v
-
-
-class L3gd20Driver(SensorDriver):
+class L3gd20Driver(StSpiDriver):
     """PX4-style L3GD20 driver on ``wq:SPI1``.
 
     ``spi`` is the handle on the gyro's chip select (PC13); ``rotation`` an optional PX4 rotation
@@ -110,72 +118,32 @@ class L3gd20Driver(SensorDriver):
                  rotation: int | str | Sequence[Sequence[float]] | None = None,
                  name: str = "l3gd20",
                  bus: int = 1, address: int = SPI_DEVICE_GYRO) -> None:
-        super().__init__(platform, name, "wq:SPI1")
-        spi.mode = 3
-        spi.max_speed_hz = 10_000_000
-        self.spi = spi
+        super().__init__(platform, spi, name, rotation, ACCEPTED_IDS,
+                         "0xD4 (L3GD20; 0xD7 L3GD20H and 0xD3 L3G4200D also accepted)",
+                         BOOT_WAIT_US, CHECKED, dummy_read=True)
         self.drdy_pin = drdy_pin
-        self.rotation = sensor_to_board(rotation, name)
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_GYR_DEVTYPE_L3GD20).value
-        self.perf_duplicate = self.perf_alloc(PC_COUNT, "duplicates")
-        self.perf_drdy_timeout = self.perf_alloc(PC_COUNT, "DRDY timeout")
-        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck data")
-        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         self._pub: Any = None
         self._msg = platform.orb.new("sensor_gyro")
-        self._state = STATE_RESET
-        self._whoami = 0xD4
-        self._checked: tuple[tuple[int, int], ...] = CHECKED
-        self._check_i = 0
-        self._failures = 0
-        self._bad_in_row = 0
         self._last_raw: tuple[int, int, int] | None = None
         self._same = 0
         self._drdy_pending = False
         self._drdy_t_us = 0
         self._polling = False
-        self._reported: dict[str, int] = {}
-        self.temperature_c = math.nan
-        self.clip_total = [0, 0, 0]
         self.published = 0
 
-    # -- bus helpers --------------------------------------------------------------------------
-
-    def _read_reg(self, addr: int) -> int:
-        return self.spi.transfer(bytes((addr | DIR_READ, 0)))[1]
-
-    def _write_reg(self, addr: int, value: int) -> None:
-        self.spi.transfer(bytes((addr, value)))
-
-    def _report(self, key: str, text: str, error: bool = False) -> None:
-        """dmesg line, at most once per ``REPORT_INTERVAL_US`` per kind (faults repeat fast)."""
-        now = self.platform.time_us()
-        last = self._reported.get(key)
-        if last is not None and now - last < REPORT_INTERVAL_US:
-            return
-        self._reported[key] = now
-        (self.platform.error if error else self.platform.warn)(self.name, text)
+    def _alloc_perf(self) -> None:
+        self.perf_duplicate = self.perf_alloc(PC_COUNT, "duplicates")
+        self.perf_drdy_timeout = self.perf_alloc(PC_COUNT, "DRDY timeout")
 
     # -- life cycle ---------------------------------------------------------------------------
-
-    def probe(self) -> str | None:
-        self._read_reg(WHO_AM_I)  # dummy read: the first transfer after power-up
-        who = self._read_reg(WHO_AM_I)
-        if who not in ACCEPTED_IDS:
-            hint = " (no device answering: MISO reads high)" if who == 0xFF else ""
-            return (f"WHO_AM_I 0x{who:02X}, expected 0xD4 (L3GD20; 0xD7 L3GD20H and 0xD3 "
-                    f"L3G4200D also accepted){hint}")
-        self._whoami = who
-        self._checked = ((WHO_AM_I, who),) + CHECKED
-        return None
 
     def _start(self) -> None:
         if self._pub is None:
             self._pub = self.advertise_multi("sensor_gyro")
         if self.drdy_pin is not None:
             self.drdy_pin.attach_interrupt(self._drdy_isr, rising=True)
-        self._state = STATE_RESET
-        self.schedule_now()
+        super()._start()
 
     def stop(self) -> None:
         if self.drdy_pin is not None and self.running:
@@ -193,65 +161,26 @@ class L3gd20Driver(SensorDriver):
             self.schedule_now()
 
     def _reset(self) -> None:
-        self.perf_reset.count()
-        self._state = STATE_RESET
         self._drdy_pending = False
-        self.schedule_clear()  # drop the polling interval / DRDY watchdog
-        self.schedule_now()
+        super()._reset()
 
-    def run(self) -> None:
-        if not self.running:
-            return
-        state = self._state
-        if state == STATE_RESET:
-            self._write_reg(CTRL_REG5, 0x80)  # BOOT: reboot memory content
-            self._state = STATE_WAIT_FOR_RESET
-            self.schedule_delayed(BOOT_WAIT_US)
-        elif state == STATE_WAIT_FOR_RESET:
-            who = self._read_reg(WHO_AM_I)
-            if who == self._whoami and self._disable_i2c():
-                self._failures = 0
-                self._state = STATE_CONFIGURE
-                self.schedule_now()
-                return
-            self._failures += 1
-            self.error_count += 1
-            self.perf_bad_register.count()
-            hint = " (no device answering)" if who == 0xFF else ""
-            self._report("reset", f"reset failed: WHO_AM_I 0x{who:02X}, expected "
-                         f"0x{self._whoami:02X}{hint}; retrying", error=True)
-            self._state = STATE_RESET
-            self.schedule_delayed(RESET_RETRY_US)
-        elif state == STATE_CONFIGURE:
-            if self._configure():
-                self._state = STATE_READ
-                self._enter_read()
-            else:
-                self.perf_bad_register.count()
-                self.error_count += 1
-                self._failures += 1
-                if self._failures >= 3:
-                    self._report("config", "configuration did not stick, resetting", True)
-                    self._failures = 0
-                    self._reset()
-                else:
-                    self.schedule_delayed(BOOT_WAIT_US)
-        else:
-            self._run_read()
+    def _boot(self) -> None:
+        self._write_reg(CTRL_REG5, CTRL_REG5_BOOT)
 
-    def _disable_i2c(self) -> bool:
+    def _after_boot(self) -> bool:
+        """PX4's "disable I2C" (sheet 2.8 step 2), up to 10 tries."""
         for _ in range(10):
             v = self._read_reg(I2C_DISABLE_REG)
-            self._write_reg(I2C_DISABLE_REG, v | 0x20)
-            if self._read_reg(I2C_DISABLE_REG) == v | 0x20:
-                self._write_reg(LOW_ODR, 0x08)
+            self._write_reg(I2C_DISABLE_REG, v | I2C_DISABLE_BIT)
+            if self._read_reg(I2C_DISABLE_REG) == v | I2C_DISABLE_BIT:
+                self._write_reg(LOW_ODR, LOW_ODR_I2C_DIS)
                 return True
         return False
 
     def _configure(self) -> bool:
         for addr, value in CONFIG_SEQUENCE:
             self._write_reg(addr, value)
-        return all(self._read_reg(addr) == value for addr, value in CHECKED)
+        return self._config_ok()
 
     def _enter_read(self) -> None:
         self._bad_in_row = 0
@@ -288,22 +217,11 @@ class L3gd20Driver(SensorDriver):
 
     # -- one sample ---------------------------------------------------------------------------
 
-    def _bad_transfer(self, why: str) -> None:
-        self.perf_bad_transfer.count()
-        self.error_count += 1
-        self._bad_in_row += 1
-        if self._bad_in_row >= BAD_TRANSFERS_RESET:
-            self._report("bad", f"{why}: {self._bad_in_row} bad transfers in a row, resetting",
-                         error=True)
-            self._bad_in_row = 0
-            self._reset()
-
     def _read_sample(self, publish: bool, t_sample_us: int | None = None) -> None:
         self.perf_cycle.begin()
-        rx = self.spi.transfer(bytes((0x26 | DIR_READ | ADDR_INCREMENT,)) + bytes(8))
+        d = self._read_burst(OUT_TEMP, 8)
         self.perf_cycle.end()
         now = self.platform.time_us()
-        d = rx[1:]
         if d == b"\xff" * 8:
             self._bad_transfer("all bytes 0xFF")
             return
@@ -313,25 +231,21 @@ class L3gd20Driver(SensorDriver):
         if not -40.0 <= temperature <= 85.0:
             self._bad_transfer(f"temperature {temperature:.0f} degC out of range")
             return
-        if not status & STATUS_ZYXDA:
+        if not status & STATUS_REG_ZYXDA:
             self.perf_duplicate.count()
             return
         self._bad_in_row = 0
-        if status & STATUS_ZYXOR:
+        if status & STATUS_REG_ZYXOR:
             self.perf_missed.count()
-        raw = _XYZ_LE(d, 2)  # OUT_X_L .. OUT_Z_H: three little-endian int16 (as _s16)
+        raw = _XYZ_LE(d, 2)  # OUT_X_L .. OUT_Z_H: three little-endian int16
         if not publish:
             self._last_raw = raw
             return
         if raw == self._last_raw:
             self._same += 1
             if self._same >= STUCK_SAMPLES:
-                self.perf_stuck.count()
-                self.error_count += 1
-                self._report("stuck", f"data stuck at {raw} for {self._same} samples, resetting",
-                             error=True)
                 self._same = 0
-                self._reset()
+                self._stuck("data", raw)
                 return
         else:
             self._same = 0
@@ -346,12 +260,7 @@ class L3gd20Driver(SensorDriver):
 
     def _publish(self, raw: tuple[int, int, int], clip: list[int], temperature: float,
                  t_sample_us: int, now_us: int) -> None:
-        x, y, z = raw[0] * SCALE_RAD_S, raw[1] * SCALE_RAD_S, raw[2] * SCALE_RAD_S
-        r = self.rotation
-        if r is not None:
-            x, y, z = (r[0][0] * x + r[0][1] * y + r[0][2] * z,
-                       r[1][0] * x + r[1][1] * y + r[1][2] * z,
-                       r[2][0] * x + r[2][1] * y + r[2][2] * z)
+        x, y, z = self._rotate(raw[0] * SCALE_RAD_S, raw[1] * SCALE_RAD_S, raw[2] * SCALE_RAD_S)
         m = self._msg
         m.timestamp_sample = t_sample_us
         m.device_id = self.device_id
@@ -364,23 +273,8 @@ class L3gd20Driver(SensorDriver):
         self._pub.publish(m)  # type: ignore[union-attr]
         self.published += 1
 
-    def _check_register(self) -> None:
-        addr, expected = self._checked[self._check_i]
-        self._check_i = (self._check_i + 1) % len(self._checked)
-        value = self._read_reg(addr)
-        if value == expected:
-            return
-        self.perf_bad_register.count()
-        self.error_count += 1
-        self._report(f"reg{addr}", f"register 0x{addr:02X} read 0x{value:02X}, expected "
-                     f"0x{expected:02X}")
-        if addr == WHO_AM_I:
-            self._reset()
-        else:
-            self._write_reg(addr, expected)
-
     def status(self) -> str:
-        extra = [self.perf_duplicate, self.perf_drdy_timeout, self.perf_stuck, self.perf_reset]
         mode = "DRDY" if self.drdy_pin is not None and not self._polling else "polling"
-        head = f"  mode: {mode}, published {self.published}, error_count {self.error_count}"
-        return "\n".join([super().status(), head] + ["  " + p.summary() for p in extra])
+        return self._status_lines(
+            f"mode: {mode}, published {self.published}, error_count {self.error_count}",
+            [self.perf_duplicate, self.perf_drdy_timeout, self.perf_stuck, self.perf_reset])

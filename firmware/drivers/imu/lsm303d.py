@@ -19,19 +19,26 @@ What the driver notices: all-0xFF transfers (the chip is gone: bad transfer, 10 
 it), FIFO_SRC that cannot be (EMPTY with samples), temperature outside -40..85 degC (garbage),
 frozen data (``STUCK_SAMPLES`` identical accel samples or mag samples: reset), FIFO overrun
 (missed samples), samples at the 16-bit limit (clip counters, saturation warning), changed
-registers, wrong ID after reset (refused, retried every 100 ms).
+registers, wrong ID after reset (refused, retried every 100 ms). The life cycle, the bus
+helpers and the error handling it shares with the L3GD20 driver live in
+:mod:`firmware.drivers.imu.st_spi_driver`.
 """
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Sequence
 from typing import Any, Final
 
 from board.spi import SpiHandle
-from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
-from firmware.drivers.imu.l3gd20 import sensor_to_board
+from firmware.drivers.device import BUS_TYPE_SPI, DeviceId
+from firmware.drivers.imu.st_spi_driver import (
+    STATE_READ,
+    STUCK_SAMPLES,
+    RegCheck,
+    StSpiDriver,
+    s16,
+)
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
 
@@ -48,24 +55,44 @@ DRV_MAG_DEVTYPE_LSM303D: Final = 0x02
 #: Legacy PX4 device number of the LSM303D on SPI1 (reference sheet 7.3).
 SPI_DEVICE_ACCEL_MAG: Final = 2
 
-WHO_AM_I: Final = 0x0F
 WHO_AM_I_VALUE: Final = 0x49
-TEMP_OUT_L: Final = 0x05
+
+# Registers and bits, in the datasheet's names (reference sheet 3.3, 3.4).
+TEMP_OUT_L: Final = 0x05            # TEMP_OUT_L, TEMP_OUT_H, STATUS_M, OUT_X_L_M .. OUT_Z_H_M
+TEMP_OUT_H_TEMP: Final = 0x0F       # the 12-bit temperature's high nibble
+STATUS_M_ZYXMDA: Final = 0x08
 CTRL0: Final = 0x1F
+CTRL0_BOOT: Final = 0x80
+CTRL0_FIFO_EN: Final = 0x40
+CTRL0_MUST_BE_0: Final = 0x18       # bits 4, 3
 CTRL1: Final = 0x20
+CTRL1_AODR: Final = 0xF0
+CTRL1_AODR_1600HZ: Final = 0xA0
+CTRL1_BDU: Final = 0x08
+CTRL1_AZEN: Final = 0x04
 CTRL2: Final = 0x21
+CTRL2_ABW: Final = 0xC0             # 00: 773 Hz anti-alias
+CTRL2_AFS: Final = 0x38
+CTRL2_AFS_16G: Final = 0x20
+CTRL2_MUST_BE_0: Final = 0x04
 CTRL5: Final = 0x24
+CTRL5_TEMP_EN: Final = 0x80
+CTRL5_M_RES_HIGH: Final = 0x60
+CTRL5_M_ODR: Final = 0x1C
+CTRL5_M_ODR_50HZ: Final = 0x10
 CTRL6: Final = 0x25
+CTRL6_MFS_12GAUSS: Final = 0x60
 CTRL7: Final = 0x26
+CTRL7_MD: Final = 0x03              # 00: continuous conversion
 OUT_X_L_A: Final = 0x28
 FIFO_CTRL: Final = 0x2E
+FIFO_CTRL_FM: Final = 0xE0
+FIFO_CTRL_FM_FIFO: Final = 0x20
+FIFO_CTRL_FTH: Final = 0x1F
 FIFO_SRC: Final = 0x2F
-DIR_READ: Final = 0x80
-ADDR_INCREMENT: Final = 0x40
 FIFO_SRC_OVRN: Final = 0x40
 FIFO_SRC_EMPTY: Final = 0x20
 FIFO_SRC_FSS: Final = 0x1F
-STATUS_M_ZYXMDA: Final = 0x08
 
 ACCEL_ODR_HZ: Final = 1600
 ACCEL_INTERVAL_US: Final = 2500
@@ -75,35 +102,27 @@ CHECK_INTERVAL_US: Final = 100_000
 ACCEL_SCALE_M_S2: Final = 0.732e-3 * 9.80665       # +-16 g: 0.732 mg/LSB
 MAG_SCALE_GAUSS: Final = 0.479e-3                  # +-12 gauss: 0.479 mgauss/LSB
 BOOT_WAIT_US: Final = 150_000
-RESET_RETRY_US: Final = 100_000
-BAD_TRANSFERS_RESET: Final = 10
-STUCK_SAMPLES: Final = 50
-REPORT_INTERVAL_US: Final = 10_000_000
 
-#: (register, set bits, clear bits): PX4 modern's configuration (sheet 3.7).
-CONFIG: Final[tuple[tuple[int, int, int], ...]] = (
-    (CTRL0, 0x40, 0x98),
-    (CTRL1, 0xAC, 0x50),
-    (CTRL2, 0x20, 0xDC),
-    (CTRL5, 0xF0, 0x0C),
-    (CTRL6, 0x60, 0x00),
-    (CTRL7, 0x00, 0x03),
-    (FIFO_CTRL, 0x20 | SAMPLES_PER_CYCLE, 0xC0 | (0x1F & ~SAMPLES_PER_CYCLE)),
+#: (register, set bits, clear bits): PX4 modern's configuration (sheet 3.7), resulting in
+#: CTRL0 0x40, CTRL1 0xAF, CTRL2 0x20, CTRL5 0xF0, CTRL6 0x60, CTRL7 0x00, FIFO_CTRL 0x20 | FTH.
+#: CTRL1 sets AZEN only, as PX4's header does: X and Y stay enabled from the reset value 0x07.
+CONFIG: Final[tuple[RegCheck, ...]] = (
+    (CTRL0, CTRL0_FIFO_EN, CTRL0_BOOT | CTRL0_MUST_BE_0),
+    (CTRL1, CTRL1_AODR_1600HZ | CTRL1_BDU | CTRL1_AZEN, CTRL1_AODR & ~CTRL1_AODR_1600HZ),
+    (CTRL2, CTRL2_AFS_16G, CTRL2_ABW | (CTRL2_AFS & ~CTRL2_AFS_16G) | CTRL2_MUST_BE_0),
+    (CTRL5, CTRL5_TEMP_EN | CTRL5_M_RES_HIGH | CTRL5_M_ODR_50HZ,
+     CTRL5_M_ODR & ~CTRL5_M_ODR_50HZ),
+    (CTRL6, CTRL6_MFS_12GAUSS, 0x00),
+    (CTRL7, 0x00, CTRL7_MD),
+    (FIFO_CTRL, FIFO_CTRL_FM_FIFO | SAMPLES_PER_CYCLE,
+     (FIFO_CTRL_FM & ~FIFO_CTRL_FM_FIFO) | (FIFO_CTRL_FTH & ~SAMPLES_PER_CYCLE)),
 )
-
-STATE_RESET, STATE_WAIT_FOR_RESET, STATE_CONFIGURE, STATE_READ = range(4)
-
 
 #: X/Y/Z little-endian int16 triples of a FIFO burst, one tuple per sample.
 _iter_xyz_le: Final = struct.Struct("<3h").iter_unpack
 
 
-def _s16(lo: int, hi: int) -> int:
-    v = lo | (hi << 8)
-    return v - 0x10000 if v & 0x8000 else v
-
-
-class Lsm303dDriver(SensorDriver):
+class Lsm303dDriver(StSpiDriver):
     """PX4-style LSM303D driver on ``wq:SPI1``: publishes ``sensor_accel`` and ``sensor_mag``.
 
     ``spi`` is the handle on the chip select (PC15); ``rotation`` an optional PX4 rotation
@@ -114,143 +133,60 @@ class Lsm303dDriver(SensorDriver):
                  rotation: int | str | Sequence[Sequence[float]] | None = None,
                  name: str = "lsm303d", bus: int = 1,
                  address: int = SPI_DEVICE_ACCEL_MAG) -> None:
-        super().__init__(platform, name, "wq:SPI1")
-        spi.mode = 3
-        spi.max_speed_hz = 10_000_000
-        self.spi = spi
-        self.rotation = sensor_to_board(rotation, name)
+        super().__init__(platform, spi, name, rotation, {WHO_AM_I_VALUE: "LSM303D"},
+                         f"0x{WHO_AM_I_VALUE:02X} (LSM303D)", BOOT_WAIT_US, CONFIG)
         self.accel_device_id = DeviceId(BUS_TYPE_SPI, bus, address,
                                         DRV_ACC_DEVTYPE_LSM303D).value
         self.mag_device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_MAG_DEVTYPE_LSM303D).value
-        self.perf_fifo_overflow = self.perf_alloc(PC_COUNT, "FIFO overflow")
-        self.perf_fifo_empty = self.perf_alloc(PC_COUNT, "FIFO empty")
-        self.perf_mag_duplicate = self.perf_alloc(PC_COUNT, "mag duplicates")
-        self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck data")
-        self.perf_reset = self.perf_alloc(PC_COUNT, "reset")
         orb = platform.orb
         self._accel_pub: Any = None
         self._mag_pub: Any = None
         self._accel_msg = orb.new("sensor_accel")
         self._mag_msg = orb.new("sensor_mag")
-        self._state = STATE_RESET
-        self._failures = 0
-        self._bad_in_row = 0
         self._next_mag_us = 0
         self._next_check_us = 0
-        self._check_i = 0
         self._last_accel: tuple[int, int, int] | None = None
         self._last_mag: tuple[int, int, int] | None = None
         self._same_accel = 0
         self._same_mag = 0
-        self._reported: dict[str, int] = {}
-        self.temperature_c = math.nan
-        self.clip_total = [0, 0, 0]
         self.accel_published = 0
         self.mag_published = 0
 
-    # -- bus helpers --------------------------------------------------------------------------
-
-    def _read_reg(self, addr: int) -> int:
-        return self.spi.transfer(bytes((addr | DIR_READ, 0)))[1]
-
-    def _write_reg(self, addr: int, value: int) -> None:
-        self.spi.transfer(bytes((addr, value)))
-
-    def _modify_reg(self, addr: int, set_bits: int, clear_bits: int) -> None:
-        v = self._read_reg(addr)
-        self._write_reg(addr, (v & ~clear_bits & 0xFF) | set_bits)
-
-    def _report(self, key: str, text: str, error: bool = False) -> None:
-        """dmesg line, at most once per ``REPORT_INTERVAL_US`` per kind (faults repeat fast)."""
-        now = self.platform.time_us()
-        last = self._reported.get(key)
-        if last is not None and now - last < REPORT_INTERVAL_US:
-            return
-        self._reported[key] = now
-        (self.platform.error if error else self.platform.warn)(self.name, text)
+    def _alloc_perf(self) -> None:
+        self.perf_fifo_overflow = self.perf_alloc(PC_COUNT, "FIFO overflow")
+        self.perf_fifo_empty = self.perf_alloc(PC_COUNT, "FIFO empty")
+        self.perf_mag_duplicate = self.perf_alloc(PC_COUNT, "mag duplicates")
 
     # -- life cycle ---------------------------------------------------------------------------
-
-    def probe(self) -> str | None:
-        who = self._read_reg(WHO_AM_I)
-        if who != WHO_AM_I_VALUE:
-            hint = " (no device answering: MISO reads high)" if who == 0xFF else ""
-            return f"WHO_AM_I 0x{who:02X}, expected 0x{WHO_AM_I_VALUE:02X} (LSM303D){hint}"
-        return None
 
     def _start(self) -> None:
         if self._accel_pub is None:
             self._accel_pub = self.advertise_multi("sensor_accel")
             self._mag_pub = self.advertise_multi("sensor_mag")
-        self._state = STATE_RESET
-        self.schedule_now()
+        super()._start()
 
-    def _reset(self) -> None:
-        self.perf_reset.count()
-        self._state = STATE_RESET
-        self.schedule_clear()
-        self.schedule_now()
-
-    def run(self) -> None:
-        if not self.running:
-            return
-        state = self._state
-        if state == STATE_RESET:
-            self._modify_reg(CTRL0, 0x80, 0x00)  # BOOT
-            self._state = STATE_WAIT_FOR_RESET
-            self.schedule_delayed(BOOT_WAIT_US)
-        elif state == STATE_WAIT_FOR_RESET:
-            who = self._read_reg(WHO_AM_I)
-            if who == WHO_AM_I_VALUE:
-                self._failures = 0
-                self._state = STATE_CONFIGURE
-                self.schedule_now()
-                return
-            self._failures += 1
-            self.error_count += 1
-            self.perf_bad_register.count()
-            hint = " (no device answering)" if who == 0xFF else ""
-            self._report("reset", f"reset failed: WHO_AM_I 0x{who:02X}, expected "
-                         f"0x{WHO_AM_I_VALUE:02X}{hint}; retrying", error=True)
-            self._state = STATE_RESET
-            self.schedule_delayed(RESET_RETRY_US)
-        elif state == STATE_CONFIGURE:
-            if self._configure():
-                self._state = STATE_READ
-                self._bad_in_row = 0
-                self._last_accel = self._last_mag = None
-                self._same_accel = self._same_mag = 0
-                now = self.platform.time_us()
-                self._next_mag_us = now + MAG_INTERVAL_US
-                self._next_check_us = now + CHECK_INTERVAL_US
-                self._reset_fifo()
-                self.schedule_on_interval(ACCEL_INTERVAL_US)
-            else:
-                self.perf_bad_register.count()
-                self.error_count += 1
-                self._failures += 1
-                if self._failures >= 3:
-                    self._report("config", "configuration did not stick, resetting", True)
-                    self._failures = 0
-                    self._reset()
-                else:
-                    self.schedule_delayed(10_000)
-        else:
-            self._run_read()
+    def _boot(self) -> None:
+        self._modify_reg(CTRL0, CTRL0_BOOT, 0x00)
 
     def _configure(self) -> bool:
         for addr, set_bits, clear_bits in CONFIG:
             self._modify_reg(addr, set_bits, clear_bits)
-        return all(self._register_ok(addr, s, c)[0] for addr, s, c in CONFIG)
+        return self._config_ok()
 
-    def _register_ok(self, addr: int, set_bits: int, clear_bits: int) -> tuple[bool, int]:
-        v = self._read_reg(addr)
-        return (v & set_bits) == set_bits and not (v & clear_bits), v
+    def _enter_read(self) -> None:
+        self._bad_in_row = 0
+        self._last_accel = self._last_mag = None
+        self._same_accel = self._same_mag = 0
+        now = self.platform.time_us()
+        self._next_mag_us = now + MAG_INTERVAL_US
+        self._next_check_us = now + CHECK_INTERVAL_US
+        self._reset_fifo()
+        self.schedule_on_interval(ACCEL_INTERVAL_US)
 
     def _reset_fifo(self) -> None:
         """FIFO through Bypass mode and back: the only way out of a stopped FIFO mode."""
         self._write_reg(FIFO_CTRL, SAMPLES_PER_CYCLE)
-        self._write_reg(FIFO_CTRL, 0x20 | SAMPLES_PER_CYCLE)
+        self._write_reg(FIFO_CTRL, FIFO_CTRL_FM_FIFO | SAMPLES_PER_CYCLE)
 
     # -- cycle ----------------------------------------------------------------------------------
 
@@ -269,23 +205,6 @@ class Lsm303dDriver(SensorDriver):
             self._check_register()
         self.perf_cycle.end()
 
-    def _bad_transfer(self, why: str) -> None:
-        self.perf_bad_transfer.count()
-        self.error_count += 1
-        self._bad_in_row += 1
-        if self._bad_in_row >= BAD_TRANSFERS_RESET:
-            self._report("bad", f"{why}: {self._bad_in_row} bad transfers in a row, resetting",
-                         error=True)
-            self._bad_in_row = 0
-            self._reset()
-
-    def _stuck(self, what: str, raw: tuple[int, int, int]) -> None:
-        self.perf_stuck.count()
-        self.error_count += 1
-        self._report("stuck", f"{what} data stuck at {raw} for {STUCK_SAMPLES} samples, "
-                     f"resetting", error=True)
-        self._reset()
-
     def _read_accel(self) -> None:
         src = self._read_reg(FIFO_SRC)
         n = src & FIFO_SRC_FSS
@@ -301,21 +220,20 @@ class Lsm303dDriver(SensorDriver):
         if n == 0:
             self.perf_fifo_empty.count()
             return
-        rx = self.spi.transfer(bytes((OUT_X_L_A | DIR_READ | ADDR_INCREMENT,)) + bytes(6 * n))
+        d = self._read_burst(OUT_X_L_A, 6 * n)
         now = self.platform.time_us()
-        d = rx[1:]
         if d == b"\xff" * len(d):
             self._bad_transfer("accel burst all 0xFF")
             return
         self._bad_in_row = 0
         sx = sy = sz = 0
         clip = [0, 0, 0]
-        # Samples as (x, y, z) little-endian int16 triples (what _s16 per byte pair gives).
+        # Samples as (x, y, z) little-endian int16 triples.
         for raw in _iter_xyz_le(d):
             if raw == self._last_accel:
                 self._same_accel += 1
                 if self._same_accel >= STUCK_SAMPLES:
-                    self._stuck("accel", raw)
+                    self._stuck("accel data", raw)
                     return
             else:
                 self._same_accel = 0
@@ -346,13 +264,12 @@ class Lsm303dDriver(SensorDriver):
         self.accel_published += 1
 
     def _read_mag(self) -> None:
-        rx = self.spi.transfer(bytes((TEMP_OUT_L | DIR_READ | ADDR_INCREMENT,)) + bytes(9))
+        d = self._read_burst(TEMP_OUT_L, 9)
         now = self.platform.time_us()
-        d = rx[1:]
         if d == b"\xff" * 9:
             self._bad_transfer("mag burst all 0xFF")
             return
-        t12 = ((d[1] & 0x0F) << 8) | d[0]
+        t12 = ((d[1] & TEMP_OUT_H_TEMP) << 8) | d[0]
         if t12 & 0x800:
             t12 -= 0x1000
         temperature = t12 / 8.0 + 25.0
@@ -363,11 +280,11 @@ class Lsm303dDriver(SensorDriver):
         if not d[2] & STATUS_M_ZYXMDA:
             self.perf_mag_duplicate.count()
             return
-        raw = (_s16(d[3], d[4]), _s16(d[5], d[6]), _s16(d[7], d[8]))
+        raw = (s16(d[3], d[4]), s16(d[5], d[6]), s16(d[7], d[8]))
         if raw == self._last_mag:
             self._same_mag += 1
             if self._same_mag >= STUCK_SAMPLES:
-                self._stuck("mag", raw)
+                self._stuck("mag data", raw)
                 return
         else:
             self._same_mag = 0
@@ -386,33 +303,9 @@ class Lsm303dDriver(SensorDriver):
         self._mag_pub.publish(m)  # type: ignore[union-attr]
         self.mag_published += 1
 
-    def _rotate(self, x: float, y: float, z: float) -> tuple[float, float, float]:
-        r = self.rotation
-        if r is None:
-            return x, y, z
-        return (r[0][0] * x + r[0][1] * y + r[0][2] * z,
-                r[1][0] * x + r[1][1] * y + r[1][2] * z,
-                r[2][0] * x + r[2][1] * y + r[2][2] * z)
-
-    def _check_register(self) -> None:
-        checks = ((WHO_AM_I, WHO_AM_I_VALUE, 0xFF & ~WHO_AM_I_VALUE),) + CONFIG
-        addr, set_bits, clear_bits = checks[self._check_i]
-        self._check_i = (self._check_i + 1) % len(checks)
-        ok, value = self._register_ok(addr, set_bits, clear_bits)
-        if ok:
-            return
-        self.perf_bad_register.count()
-        self.error_count += 1
-        self._report(f"reg{addr}", f"register 0x{addr:02X} read 0x{value:02X} (set 0x{set_bits:02X}"
-                     f" clear 0x{clear_bits:02X} expected)")
-        if addr == WHO_AM_I:
-            self._reset()
-        else:
-            self._write_reg(addr, (value & ~clear_bits & 0xFF) | set_bits)
-
     def status(self) -> str:
-        extra = [self.perf_fifo_overflow, self.perf_fifo_empty, self.perf_mag_duplicate,
-                 self.perf_stuck, self.perf_reset]
-        head = (f"  accel published {self.accel_published}, mag published "
-                f"{self.mag_published}, error_count {self.error_count}")
-        return "\n".join([super().status(), head] + ["  " + p.summary() for p in extra])
+        return self._status_lines(
+            f"accel published {self.accel_published}, mag published {self.mag_published}, "
+            f"error_count {self.error_count}",
+            [self.perf_fifo_overflow, self.perf_fifo_empty, self.perf_mag_duplicate,
+             self.perf_stuck, self.perf_reset])
