@@ -8,7 +8,7 @@ transactions (three per cycle), so it bounds how often the emulated FMU can talk
 from __future__ import annotations
 
 from bench._util import median_rate
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 from ioproc.protocol import (
     PageNo,
     decode_reply,
@@ -22,7 +22,7 @@ N_CYCLES = 5_000
 
 
 def _run() -> int:
-    regs = RegisterFile()
+    regs = IoPages()
     t_us = 0
     for i in range(N_CYCLES):
         t_us += 2500

@@ -15,7 +15,7 @@ from board.spi import SpiBus, SpiTarget
 N_TRANSFERS = 50_000
 
 
-class RegisterFile(SpiTarget):
+class BurstRegisters(SpiTarget):
     """128 registers; the first byte is ``R/W | addr``, reads auto-increment."""
 
     max_clock_hz = 20_000_000
@@ -35,7 +35,7 @@ class RegisterFile(SpiTarget):
 def _run() -> int:
     kernel = Kernel("bench")
     bus = SpiBus(kernel, "spi1")
-    bus.attach("mpu", RegisterFile())
+    bus.attach("mpu", BurstRegisters())
     transfer = bus.device("mpu", mode=3, clock_hz=20_000_000).transfer
     tx = bytes((0x80 | 0x3B,)) + bytes(14)  # command + 14 data bytes
     for _ in range(N_TRANSFERS):

@@ -3,8 +3,13 @@
 Facts: io-and-rc.md §2 (page map, per-page registers, write rules) and §3 where a write has a
 side effect (safety, arming, PWM rates, reboot). The table :data:`PAGE_TABLES` says, per era,
 which pages exist, their registers (name, reset value), how a write is applied, and which
-pages are rebuilt at read time; :class:`RegisterFile` holds the live values and implements the
-named write hooks. It is the :class:`ioproc.protocol.RegisterStore` the request handler uses.
+pages are rebuilt at read time; :class:`IoPages` holds the live values and implements the
+named write hooks. It is the :class:`ioproc.protocol.PageStore` the request handler uses.
+
+The IO's register space is its own kind: 16-bit registers in numbered pages, written through
+per-page rules by a link protocol. A device's byte-wide register map is the other kind, declared
+with ``peripherals.regs`` (``Reg``, ``Field``, ``RegisterFile``); the two share no code and,
+since the pages were renamed from ``RegisterFile``, no name.
 
 Two write paths, as in the firmware (``registers_set``):
 
@@ -144,7 +149,7 @@ def _rc_config_regs() -> tuple[RegSpec, ...]:
 
 def _e14_pages() -> dict[int, PageSpec]:
     e14 = Era.E14
-    setup_writes = {Setup.FEATURES: "features", Setup.ARMING: "arming",
+    setup_writes: dict[int, str] = {Setup.FEATURES: "features", Setup.ARMING: "arming",
                     Setup.PWM_RATES: "pwm_rates", Setup.PWM_DEFAULTRATE: "pwm_defaultrate",
                     Setup.PWM_ALTRATE: "pwm_altrate", Setup.VSERVO_SCALE: "store",
                     Setup.DSM: "dsm", Setup.SET_DEBUG: "store", Setup.REBOOT_BL: "reboot_bl",
@@ -237,8 +242,8 @@ def _float_to_u16(value: float) -> int:
     return int(value) & 0xFFFF
 
 
-class RegisterFile:
-    """Live register pages of one IO, with the era's write rules (a ``RegisterStore``)."""
+class IoPages:
+    """Live register pages of one IO, with the era's write rules (a ``PageStore``)."""
 
     def __init__(self, era: Era = ERA, hooks: IoHooks | None = None, firmware_crc: int = 0):
         self.era = era
@@ -284,7 +289,7 @@ class RegisterFile:
     def arming(self, value: int) -> None:
         self.values[PageNo.SETUP][Setup.ARMING] = int(value) & 0xFFFF
 
-    # -- RegisterStore -----------------------------------------------------------------------
+    # -- PageStore -----------------------------------------------------------------------
     def read(self, page: int, offset: int) -> Sequence[int] | None:
         """registers_get: values from ``offset`` to the page end; None -> ERROR reply."""
         spec = self.spec.get(page)

@@ -476,7 +476,7 @@ def reg_to_float(value: int) -> float:
 
 
 # --- IO side ---------------------------------------------------------------------------------
-class RegisterStore(Protocol):
+class PageStore(Protocol):
     """What the request handler needs from the IO's register pages (see ``ioproc.pages``)."""
 
     def read(self, page: int, offset: int) -> Sequence[int] | None:
@@ -491,7 +491,7 @@ _CORRUPT_CRC: Final = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CRC_PAGE_OFFSET, (
 _CORRUPT_CODE: Final = LAYOUT.pack(ReplyCode.CORRUPT, *CORRUPT_CODE_PAGE_OFFSET, ())
 
 
-def handle_request(packet: bytes | bytearray | memoryview, store: RegisterStore,
+def handle_request(packet: bytes | bytearray | memoryview, store: PageStore,
                    now_us: int) -> bytes | None:
     """IO side of one transaction: the bytes of one received burst -> reply bytes or None.
 

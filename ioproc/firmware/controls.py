@@ -20,7 +20,7 @@ from board.timer import Timer
 from board.uart import Uart
 from ioproc.firmware.bits import AL, AR, FE, RF, SF
 from ioproc.firmware.hardware import IoHardware
-from ioproc.pages import ADC_RSSI, RegisterFile
+from ioproc.pages import ADC_RSSI, IoPages
 from ioproc.protocol import (
     CONTROL_CHANNELS,
     RC_ASSIGN_MODESWITCH,
@@ -105,7 +105,7 @@ def e14_rc_input() -> RcMux:
 class Controls:
     """RC side of the IO main loop plus the PPM capture interrupt."""
 
-    def __init__(self, hw: IoHardware, regs: RegisterFile,
+    def __init__(self, hw: IoHardware, regs: IoPages,
                  mixer_tick: Callable[[int], None], rc: RcMux | None = None) -> None:
         self.hw = hw
         self.regs = regs

@@ -34,7 +34,7 @@ from ioproc.firmware.safety import (
 )
 from ioproc.firmware.sbus_out import SbusOut
 from ioproc.firmware.serial_link import FmuLink
-from ioproc.pages import IoHooks, RegisterFile
+from ioproc.pages import IoHooks, IoPages
 from ioproc.protocol import ERA
 from ioproc.pwm_limit import PwmLimit
 
@@ -66,7 +66,7 @@ class IoFirmware:
         hooks = IoHooks(adc_measure=hw.adc.read, set_rate_group=self.pwm.set_rate,
                         dsm_bind=self._dsm_bind, set_sbus_out=self.sbus_out.enable,
                         set_amber_led=lambda on: self.leds.set("amber", on))
-        self.regs = RegisterFile(ERA, hooks, firmware_crc)
+        self.regs = IoPages(ERA, hooks, firmware_crc)
         self.mixer = MixerTick(self.regs, self.pwm, PwmLimit(ERA), self.sbus_out.send)
         self.controls = Controls(hw, self.regs, self.mixer.tick)
         self.safety = SafetySwitch(self.regs, pin("PB5"), self.leds)

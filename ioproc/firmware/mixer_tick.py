@@ -15,7 +15,7 @@ from typing import Final
 
 from ioproc.firmware.bits import AL, AR, FE, SF
 from ioproc.firmware.pwm_out import PwmServo
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 from ioproc.protocol import (
     CONTROL_CHANNELS,
     CONTROL_GROUPS,
@@ -53,7 +53,7 @@ class MixSource(Enum):
 class MixerTick:
     """State the E14 mixer keeps between passes, and the pass itself."""
 
-    def __init__(self, regs: RegisterFile, pwm: PwmServo, limit: PwmLimit | None = None,
+    def __init__(self, regs: IoPages, pwm: PwmServo, limit: PwmLimit | None = None,
                  sbus_out: Callable[[list[int], int, bool], None] | None = None) -> None:
         self.regs = regs
         self.pwm = pwm
@@ -67,7 +67,7 @@ class MixerTick:
         self._fs_cache: dict[int, int] = {}
         self._controls = regs.page(PageNo.CONTROLS)
         self._rc = regs.page(PageNo.RC_INPUT)
-        # Live page lists (RegisterFile never replaces them), looked up once: a pass runs every
+        # Live page lists (IoPages never replaces them), looked up once: a pass runs every
         # millisecond, and the page() and status_flags lookups were a fifth of its cost.
         self._status = regs.page(PageNo.STATUS)
         self._setup = regs.page(PageNo.SETUP)

@@ -24,7 +24,7 @@ from typing import Final
 
 from board.gpio import Pin
 from ioproc.firmware.bits import AR, SF
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 
 __all__ = [
     "ARM_COUNTER_THRESHOLD",
@@ -76,7 +76,7 @@ class Leds:
 class SafetySwitch:
     """Button debounce + safety LED pattern, run every 100 ms from a timer callback."""
 
-    def __init__(self, regs: RegisterFile, button: Pin, leds: Leds) -> None:
+    def __init__(self, regs: IoPages, button: Pin, leds: Leds) -> None:
         self.regs = regs
         self.button = button
         self.leds = leds

@@ -25,7 +25,7 @@ from typing import Final
 
 from board.kernel import Kernel
 from board.uart import FE, NF, ORE, Uart
-from ioproc.protocol import PKT_MAX_SIZE, RegisterStore, handle_request
+from ioproc.protocol import PKT_MAX_SIZE, PageStore, handle_request
 
 __all__ = ["REPLY_LATENCY_NS", "FmuLink"]
 
@@ -38,7 +38,7 @@ _LINE_ERRORS: Final = ORE | NF | FE
 class FmuLink:
     """Request/reply engine on USART2; counters mirror the IO's perf counters."""
 
-    def __init__(self, kernel: Kernel, uart: Uart, store: RegisterStore) -> None:
+    def __init__(self, kernel: Kernel, uart: Uart, store: PageStore) -> None:
         self.kernel = kernel
         self.uart = uart
         self.store = store

@@ -1,7 +1,7 @@
 """A test-side PX4IO: a UART wired to the driver's, answering with the real register pages.
 
 Requests are framed by the IDLE interrupt as on the IO (§1.6) and answered by
-:func:`ioproc.protocol.handle_request` over an :class:`ioproc.pages.RegisterFile`. Knobs make
+:func:`ioproc.protocol.handle_request` over an :class:`ioproc.pages.IoPages`. Knobs make
 the link misbehave in the ways the driver must survive: corrupt the CRC of the next replies,
 drop them, delay them, answer ERROR for a page, reboot (fresh registers), or stay silent.
 
@@ -26,7 +26,7 @@ from firmware.modules.system_params import PARAMS as SYSTEM_PARAMS
 from firmware.platform import Platform
 from firmware.platform.params import ParamDef, Params
 from firmware.system import System
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 from ioproc.protocol import (
     LAYOUT,
     PageNo,
@@ -86,8 +86,8 @@ class FakeIo:
         self.reboots = 0
         self.regs = self._fresh()
 
-    def _fresh(self) -> RegisterFile:
-        regs = RegisterFile()
+    def _fresh(self) -> IoPages:
+        regs = IoPages()
         if self.protocol_version is not None:
             regs.values[PageNo.CONFIG][0] = self.protocol_version
         return regs

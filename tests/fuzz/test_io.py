@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from ioproc.mixer import (MixerGroup, MixerParseError, MixerUpload, encode_mixer_upload,
                           filter_mixer_file, load_from_buf, parse_mixer_text)
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 from ioproc.protocol import (LAYOUT, PKT_COUNT_MASK, PageNo, ProtocolError, decode_reply,
                              encode_write, handle_request)
 from tests.fuzzing import fuzz
@@ -80,7 +80,7 @@ def test_mixer_upload_in_chunks_keeps_registers_in_range(text: str, max_transfer
     """Invariant: uploading any text through page 52 as the FMU does (chunks, closing
     newline) never raises on the IO, keeps its buffer under 256 bytes, and leaves
     FAILSAFE_PWM as uint16 registers (0..65535, E14's unclamped x600 + 1500)."""
-    regs = RegisterFile()
+    regs = IoPages()
     for words in encode_mixer_upload(text.encode("latin-1", "replace").decode("latin-1"),
                                      max_transfer):
         words = words[:32]  # one PX4IO packet carries at most 32 registers

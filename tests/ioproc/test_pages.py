@@ -7,7 +7,7 @@ import math
 import pytest
 
 from ioproc.mixer import encode_mixer_upload
-from ioproc.pages import PAGE_TABLES, IoHooks, RegisterFile, _float_to_u16
+from ioproc.pages import PAGE_TABLES, IoHooks, IoPages, _float_to_u16
 from ioproc.protocol import (
     ERA,
     Alarms,
@@ -30,7 +30,7 @@ class Io:
 
     def __init__(self, **hooks) -> None:
         self.calls: list[tuple] = []
-        self.regs = RegisterFile(hooks=IoHooks(**hooks), firmware_crc=0x2DFD2D88)
+        self.regs = IoPages(hooks=IoHooks(**hooks), firmware_crc=0x2DFD2D88)
 
     def read(self, page: int, offset: int, count: int):
         return decode_reply(handle_request(encode_read(page, offset, count), self.regs, 0))
@@ -64,10 +64,10 @@ def test_page_lengths_match_reference() -> None:
 def test_every_hook_named_in_the_tables_exists() -> None:
     for spec in PAGE_TABLES[ERA].values():
         if spec.bulk_write:
-            assert callable(getattr(RegisterFile, "_bulk_" + spec.bulk_write))
+            assert callable(getattr(IoPages, "_bulk_" + spec.bulk_write))
         for hook in [*spec.writes.values(), spec.default_write]:
             if hook not in (None, "ignore"):
-                assert callable(getattr(RegisterFile, "_w_" + hook))
+                assert callable(getattr(IoPages, "_w_" + hook))
 
 
 def test_register_access_table() -> None:

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ioproc.pages import RegisterFile
+from ioproc.pages import IoPages
 from ioproc.protocol import (
     CRC8_TABLE,
     ERA,
@@ -105,16 +105,16 @@ def test_value_conventions() -> None:
 
 # --- the IO-side handler --------------------------------------------------------------------
 @pytest.fixture
-def regs() -> RegisterFile:
-    return RegisterFile()
+def regs() -> IoPages:
+    return IoPages()
 
 
-def transact(regs: RegisterFile, request: bytes, now_us: int = 0):
+def transact(regs: IoPages, request: bytes, now_us: int = 0):
     reply = handle_request(request, regs, now_us)
     return None if reply is None else decode_reply(reply)
 
 
-def test_handler_answers_worked_examples(regs: RegisterFile) -> None:
+def test_handler_answers_worked_examples(regs: IoPages) -> None:
     assert handle_request(hx("01 29 00 00 00 00"), regs, 0) == hx("01 7D 00 00 04 00")
     assert handle_request(hx("41 8E 32 01 03 00"), regs, 0) == hx("00 D4 32 01")
     assert regs.arming == 3
@@ -125,14 +125,14 @@ def test_handler_answers_worked_examples(regs: RegisterFile) -> None:
     assert handle_request(bytes(corrupt), regs, 0) == hx("40 BF FF FF")
 
 
-def test_refused_write_example_and_partial_application(regs: RegisterFile) -> None:
+def test_refused_write_example_and_partial_application(regs: IoPages) -> None:
     # SETUP regs 1..5: ARMING, PWM_RATES, DEFAULTRATE, ALTRATE applied; reg 5 refused
     request = encode_write(PageNo.SETUP, 1, [0x0001, 0, 50, 400, 7])
     assert handle_request(request, regs, 0) == hx("80 E5 32 01")
     assert regs.arming == 0x0001 and regs.page(PageNo.SETUP)[4] == 400
 
 
-def test_bad_code_gets_corrupt_fffe(regs: RegisterFile) -> None:
+def test_bad_code_gets_corrupt_fffe(regs: IoPages) -> None:
     for code in (0x80, 0xC0):
         request = LAYOUT.pack(code, 0, 0, [0])
         reply = handle_request(request, regs, 0)
@@ -140,22 +140,22 @@ def test_bad_code_gets_corrupt_fffe(regs: RegisterFile) -> None:
         assert reply[0] == 0x40 and reply[2:] == hx("FF FE")
 
 
-def test_short_request_gets_no_reply(regs: RegisterFile) -> None:
+def test_short_request_gets_no_reply(regs: IoPages) -> None:
     assert handle_request(b"", regs, 0) is None
     assert handle_request(hx("01 29 00 00"), regs, 0) is None  # read without padding words
     assert handle_request(hx("01 29 00 00 00"), regs, 0) is None
 
 
-def test_trailing_bytes_ignored(regs: RegisterFile) -> None:
+def test_trailing_bytes_ignored(regs: IoPages) -> None:
     assert handle_request(hx("01 29 00 00 00 00 12 34"), regs, 0) == hx("01 7D 00 00 04 00")
 
 
-def test_full_dma_buffer_with_oversized_count_is_corrupt(regs: RegisterFile) -> None:
+def test_full_dma_buffer_with_oversized_count_is_corrupt(regs: IoPages) -> None:
     assert handle_request(bytes([0x21]) + bytes(67), regs, 0) == hx("40 BF FF FF")
     assert handle_request(bytes([0x21]) + bytes(60), regs, 0) is None
 
 
-def test_read_truncated_at_page_end_and_max_regs(regs: RegisterFile) -> None:
+def test_read_truncated_at_page_end_and_max_regs(regs: IoPages) -> None:
     reply = transact(regs, encode_read(PageNo.CONFIG, 5, 10))
     assert reply.ok and reply.values == (8, 18, 2, 0)
     reply = transact(regs, encode_read(PageNo.RC_CONFIG, 0, 32))
@@ -163,7 +163,7 @@ def test_read_truncated_at_page_end_and_max_regs(regs: RegisterFile) -> None:
     assert reply.values[:6] == (1000, 1500, 2000, 30, 0, 1)
 
 
-def test_unknown_page_and_offset_past_end(regs: RegisterFile) -> None:
+def test_unknown_page_and_offset_past_end(regs: IoPages) -> None:
     for page, offset in ((PageNo.SENSORS, 0), (PageNo.MIXERLOAD, 0), (PageNo.TEST, 0),
                          (200, 0), (PageNo.CONFIG, 9), (PageNo.STATUS, 9)):
         reply = transact(regs, encode_read(page, offset, 1))
@@ -171,7 +171,7 @@ def test_unknown_page_and_offset_past_end(regs: RegisterFile) -> None:
         assert (reply.page, reply.offset) == (page, offset)
 
 
-def test_write_reply_has_count_zero(regs: RegisterFile) -> None:
+def test_write_reply_has_count_zero(regs: IoPages) -> None:
     reply = handle_request(encode_write(PageNo.CONTROLS, 0, [1000] * 8), regs, 5)
     assert reply[0] == 0x00 and len(reply) == 4
 
@@ -193,7 +193,7 @@ def _check_reply(request: bytes, reply: bytes | None) -> None:
             assert len(decoded.values) <= min(request[0] & 0x3F, PKT_MAX_REGS)
 
 
-class StrictRegisters(RegisterFile):
+class StrictRegisters(IoPages):
     """Remembers any exception a page hook raised (the handler would only log it)."""
 
     def __init__(self) -> None:
