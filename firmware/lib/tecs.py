@@ -196,6 +196,10 @@ class Tecs:
         tc_h = alt_tc_s if alt_tc_s is not None else p.alt_error_tc_s
         self.hgt_sp_adj = _clamp(self.hgt_sp_adj, altitude_m - p.sink_max_m_s * tc_h,
                                  altitude_m + p.climb_max_m_s * tc_h)
+        if climbout and hgt_sp_m > altitude_m:
+            # climbing out faster than the ramp: the demand keeps up with the aircraft, so
+            # that the end of the climb-out does not find it far below and push the nose down
+            self.hgt_sp_adj = max(self.hgt_sp_adj, altitude_m)
         ramp_rate = (self.hgt_sp_adj - prev) / dt
         hgt_rate_sp = _clamp((self.hgt_sp_adj - altitude_m) / max(tc_h, 0.1)
                              + p.hgt_rate_ff * ramp_rate, -p.sink_max_m_s, p.climb_max_m_s)

@@ -165,8 +165,8 @@ def test_runway_takeoff_holds_heading_and_climbs_out():
     rig.run(1.5, log, every_n=100)
     # the navigator raises the takeoff altitude during the ground roll: the same takeoff goes
     # on (no new throttle ramp)
-    rig.set_setpoint(SP_TAKEOFF, 0.0, 0.0, 35.0, yaw=0.0)
-    rig.run(23.5, log, every_n=100)
+    rig.set_setpoint(SP_TAKEOFF, 0.0, 0.0, 50.0, yaw=0.0)
+    rig.run(28.5, log, every_n=100)
     liftoff = next(r for r in rows if r[6] > 0.5)
     ramp = [r[7] for r in rows if r[0] < liftoff[0]]
     assert all(b >= a for a, b in zip(ramp, ramp[1:]))
@@ -176,7 +176,12 @@ def test_runway_takeoff_holds_heading_and_climbs_out():
     # no lift-off before the rotation speed, FW_AIRSPD_MIN * RWTO_AIRSPD_SCL
     assert liftoff[4] > PLANE_PARAMS["FW_AIRSPD_MIN"] * 1.3 - 0.5
     assert max(abs(r[2]) for r in ground) < 3.0            # on the runway's centre line
-    assert abs(rows[-1][3] - 35.0) < 3.0
+    assert abs(rows[-1][3] - 50.0) < 2.0
+    # the end of the climb-out (10 m below) neither dips nor overshoots (TECS's demand kept up)
+    hs = [r[3] for r in rows]
+    assert max(hs) < 50.0 + 2.0
+    up = hs[:next(i for i, h in enumerate(hs) if h > 49.0)]
+    assert max(max(up[:i + 1]) - h for i, h in enumerate(up)) < 0.5
     assert max(r[5] for r in rows if r[4] > 8.0) < STALL_AOA_RAD
 
 
