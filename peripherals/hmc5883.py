@@ -87,7 +87,13 @@ MEASUREMENT_NS: Final = 6_000_000     # single measurement, MA = 1 (~6 ms, max 1
 RDY_LOW_NS: Final = 250 * NS_PER_US   # RDY clear / DRDY low before and while data land
 MAG_NOISE_GA: Final = 0.002           # datasheet noise floor (standard deviation)
 _IDLE_AFTER_SINGLE: Final = 0x03      # MD read back after a single measurement (open point 7)
-_DATA: Final = range(0x03, 0x09)
+# Addresses the pointer logic uses, named after the table above.
+DXRA: Final = 0x03                    # first data byte (X MSB)
+DYRB: Final = 0x08                    # last data byte (Y LSB)
+IRA: Final = 0x0A                     # first identification byte
+IRC: Final = 0x0C                     # last identification byte, the pointer's end
+_DATA: Final = range(DXRA, DYRB + 1)
+_ALL_DATA_READ: Final = (1 << len(_DATA)) - 1   # one bit per data byte
 
 
 class Hmc5883(I2cTarget):
@@ -145,24 +151,25 @@ class Hmc5883(I2cTarget):
         wrong = self.faults.wrong_id
         for _ in range(n):
             p = self.pointer
-            if 0x0A <= p <= 0x0C and wrong is not None:
-                out.append((wrong >> (8 * (0x0C - p))) & 0xFF)
+            if IRA <= p <= IRC and wrong is not None:
+                out.append((wrong >> (8 * (IRC - p))) & 0xFF)
             else:
                 out.append(self.regs.read(p))
             if p in _DATA:
-                self._data_byte_read(p - 0x03)
+                self._data_byte_read(p - DXRA)
             self._advance()
         return bytes(out)
 
     def _advance(self) -> None:
         p = self.pointer
-        self.pointer = 0x00 if p >= 0x0C else 0x03 if p == 0x08 else p + 1
+        # From IRC (or above) back to CRA, from the last data byte back to the first.
+        self.pointer = 0x00 if p >= IRC else DXRA if p == DYRB else p + 1
 
     # -- status bits -----------------------------------------------------------------------
 
     def _data_byte_read(self, index: int) -> None:
         self._read_mask |= 1 << index
-        if self._read_mask == 0x3F:
+        if self._read_mask == _ALL_DATA_READ:
             self._read_mask = 0
             self.regs.set("SR.LOCK", 0)
             self.regs.set("SR.RDY", 0)
@@ -235,7 +242,7 @@ class Hmc5883(I2cTarget):
             self.dropped_locked += 1
         else:
             raw = b"".join((c & 0xFFFF).to_bytes(2, "big") for c in counts)
-            regs.values[0x03:0x09] = raw
+            regs.values[DXRA:DYRB + 1] = raw
             regs.set("SR.RDY", 1)
         pin = self.drdy_pin
         if pin is not None and not self.faults.drdy_stuck:

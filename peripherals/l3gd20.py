@@ -75,6 +75,35 @@ DEFAULT_ERRORS: Final = AxisErrors(
 
 _OUT: Final[tuple[str, ...]] = ("OUT_X_L", "OUT_X_H", "OUT_Y_L", "OUT_Y_H", "OUT_Z_L", "OUT_Z_H")
 
+# Registers and field masks the behaviour uses, named ``REG`` and ``REG_FIELD`` after the table
+# below (tests/peripherals/test_register_names.py checks them against it).
+CTRL_REG1_PD: Final = 0x08
+CTRL_REG1_ZEN: Final = 0x04
+CTRL_REG1_XEN: Final = 0x02
+CTRL_REG1_YEN: Final = 0x01
+CTRL_REG1_DR_LSB: Final = 6
+CTRL_REG3: Final = 0x22
+CTRL_REG3_I2_DRDY: Final = 0x08
+CTRL_REG3_I2_WTM: Final = 0x04
+CTRL_REG3_I2_ORUN: Final = 0x02
+CTRL_REG3_I2_EMPTY: Final = 0x01
+#: I2_DRDY | I2_WTM | I2_ORun | I2_Empty: the sources of the DRDY/INT2 pin.
+CTRL_REG3_INT2_SOURCES: Final = 0x0F
+CTRL_REG4: Final = 0x23
+CTRL_REG4_BDU: Final = 0x80
+CTRL_REG4_BLE: Final = 0x40
+CTRL_REG4_FS: Final = 0x30
+CTRL_REG4_FS_LSB: Final = 4
+CTRL_REG5_BOOT: Final = 0x80
+OUT_TEMP: Final = 0x26
+OUT_X_L: Final = 0x28
+OUT_Z_H: Final = 0x2D
+FIFO_CTRL_REG: Final = 0x2E
+FIFO_CTRL_REG_WTM: Final = 0x1F
+FIFO_SRC_REG_WTM: Final = 0x80
+FIFO_SRC_REG_OVRN: Final = 0x40
+FIFO_SRC_REG_EMPTY: Final = 0x20
+
 REGISTERS: Final[list[Reg]] = [
     *(Reg(a, f"RESERVED_{a:02X}", doc="reserved; plain storage (PX4 uses 0x05)")
       for a in range(0x0F)),
@@ -124,8 +153,8 @@ class L3gd20(StSpiTarget):
                  name: str = "l3gd20", drdy_pin: Pin | None = None,
                  rotation: Sequence[Sequence[float]] | None = None,
                  errors: AxisErrors | None = None) -> None:
-        super().__init__(kernel, name, rng, frozenset(range(0x26, 0x27)) | frozenset(
-            range(0x28, 0x2E)))
+        super().__init__(kernel, name, rng, frozenset((OUT_TEMP,)) | frozenset(
+            range(OUT_X_L, OUT_Z_H + 1)))
         self.env = env
         self.drdy_pin = drdy_pin
         self.rotation = check_rotation(rotation)
@@ -146,8 +175,8 @@ class L3gd20(StSpiTarget):
         for i, reg in enumerate(_OUT):
             regs.hook(reg, on_read=partial(self._r_out, i))
         # The same reads, a whole burst at a time (StSpiTarget._burst_read).
-        for a in range(0x28, 0x2E):
-            self._out_blocks[a] = (0x28, 0x2D, self.ch)
+        for a in range(OUT_X_L, OUT_Z_H + 1):
+            self._out_blocks[a] = (OUT_X_L, OUT_Z_H, self.ch)
         if drdy_pin is not None:
             drdy_pin.low()  # push-pull output, inactive after power-on
 
@@ -173,7 +202,8 @@ class L3gd20(StSpiTarget):
             rot = self.rotation
             w = err.apply(t_ns, env.gyro_rad_s if rot is None else rotate(rot, env.gyro_rad_s),
                           self.ch.odr_mhz / 1000, env.board_temperature_c)
-            lsb = SENSITIVITY_MDPS[(self.regs.values[0x23] >> 4) & 3] * 1e-3 * _DPS  # FS
+            fs = (self.regs.values[CTRL_REG4] & CTRL_REG4_FS) >> CTRL_REG4_FS_LSB
+            lsb = SENSITIVITY_MDPS[fs] * 1e-3 * _DPS
             raw = (to_int16(w[0] / lsb), to_int16(w[1] / lsb), to_int16(w[2] / lsb))
         self._last_raw = raw
         return raw
@@ -186,15 +216,17 @@ class L3gd20(StSpiTarget):
         return self.ch.read_byte(i, self._big_endian())
 
     def _big_endian(self) -> bool:
-        return bool(self.regs.values[0x23] & 0x40)  # CTRL_REG4.BLE
+        return bool(self.regs.values[CTRL_REG4] & CTRL_REG4_BLE)
 
     # -- configuration --------------------------------------------------------------------------
 
     def _w_ctrl1(self, value: int, old: int) -> None:
         ch = self.ch
-        axes = ((value >> 1) & 1) | ((value & 1) << 1) | (value & 0b100)  # X, Y, Z bits
+        # The channel's axis bits are X, Y, Z from bit 0; the register's order is Zen Xen Yen.
+        axes = ((1 if value & CTRL_REG1_XEN else 0) | (2 if value & CTRL_REG1_YEN else 0)
+                | (4 if value & CTRL_REG1_ZEN else 0))
         ch.axes = axes
-        odr = ODR_MHZ[value >> 6] if (value & 0x08 and axes) else 0
+        odr = ODR_MHZ[value >> CTRL_REG1_DR_LSB] if (value & CTRL_REG1_PD and axes) else 0
         if odr != ch.odr_mhz:
             if odr:
                 ch.start(self._t, odr)
@@ -202,11 +234,11 @@ class L3gd20(StSpiTarget):
                 ch.stop()
 
     def _w_ctrl4(self, value: int, old: int) -> None:
-        self.ch.set_bdu(bool(value & 0x80))
+        self.ch.set_bdu(bool(value & CTRL_REG4_BDU))
 
     def _w_ctrl5(self, value: int, old: int) -> None:
         self._update_fifo()
-        if value & 0x80:
+        if value & CTRL_REG5_BOOT:
             self._start_boot()
 
     def _w_fifo_ctrl(self, value: int, old: int) -> None:
@@ -237,15 +269,17 @@ class L3gd20(StSpiTarget):
             return
         ch = self.ch
         values = self.regs.values
-        src = values[0x22] & 0x0F  # CTRL_REG3 I2_* sources
+        src = values[CTRL_REG3] & CTRL_REG3_INT2_SOURCES
         faults = self.faults
         if not src or faults.drdy_stuck or faults.absent:
             self._set_pin(pin, 0, t_ns)
             self._arm(None)
             return
-        fifo = ch.fifo_src(values[0x2E] & 0x1F)  # FIFO_CTRL_REG.WTM
-        level = int(bool((src & 0x08 and ch.da) or (src & 0x04 and fifo & 0x80)
-                         or (src & 0x02 and fifo & 0x40) or (src & 0x01 and fifo & 0x20)))
+        fifo = ch.fifo_src(values[FIFO_CTRL_REG] & FIFO_CTRL_REG_WTM)
+        level = int(bool((src & CTRL_REG3_I2_DRDY and ch.da)
+                         or (src & CTRL_REG3_I2_WTM and fifo & FIFO_SRC_REG_WTM)
+                         or (src & CTRL_REG3_I2_ORUN and fifo & FIFO_SRC_REG_OVRN)
+                         or (src & CTRL_REG3_I2_EMPTY and fifo & FIFO_SRC_REG_EMPTY)))
         self._set_pin(pin, level, t_ns)
         # The level can only change by a read (handled on access) or at the next sample.
-        self._arm(ch.next_sample_ns() if (level == 0 or src & 0x01) else None)
+        self._arm(ch.next_sample_ns() if (level == 0 or src & CTRL_REG3_I2_EMPTY) else None)

@@ -93,6 +93,40 @@ MAG_ERRORS: Final = AxisErrors(
 
 _OUT_M: Final[tuple[str, ...]] = ("OUT_X_L_M", "OUT_X_H_M", "OUT_Y_L_M", "OUT_Y_H_M", "OUT_Z_L_M", "OUT_Z_H_M")
 _OUT_A: Final[tuple[str, ...]] = ("OUT_X_L_A", "OUT_X_H_A", "OUT_Y_L_A", "OUT_Y_H_A", "OUT_Z_L_A", "OUT_Z_H_A")
+# Registers and field masks the behaviour uses, named ``REG`` and ``REG_FIELD`` after the table
+# below (tests/peripherals/test_register_names.py checks them against it).
+TEMP_OUT_L: Final = 0x05
+TEMP_OUT_H: Final = 0x06
+OUT_X_L_M: Final = 0x08
+OUT_Z_H_M: Final = 0x0D
+INT_CTRL_M: Final = 0x12
+INT_CTRL_M_IEA: Final = 0x08                    # interrupt polarity: 1 active high
+OFFSET_X_L_M: Final = 0x16                      # X, Y, Z hard-iron offsets, L then H
+CTRL0_BOOT: Final = 0x80
+CTRL1_AODR_LSB: Final = 4
+CTRL1_BDU: Final = 0x08
+CTRL1_AXES: Final = 0x07                        # AZEN | AYEN | AXEN, X at bit 0
+CTRL2: Final = 0x21
+CTRL2_ABW_LSB: Final = 6
+CTRL2_AFS: Final = 0x38
+CTRL2_AFS_LSB: Final = 3
+CTRL3: Final = 0x22
+CTRL3_INT1_DRDY_A: Final = 0x04
+CTRL3_INT1_DRDY_M: Final = 0x02
+CTRL3_INT1_EMPTY: Final = 0x01
+CTRL4: Final = 0x23
+CTRL4_INT2_DRDY_A: Final = 0x08
+CTRL4_INT2_DRDY_M: Final = 0x04
+CTRL4_INT2_OVERRUN: Final = 0x02
+CTRL4_INT2_FTH: Final = 0x01
+OUT_X_L_A: Final = 0x28
+OUT_Z_H_A: Final = 0x2D
+FIFO_CTRL: Final = 0x2E
+FIFO_CTRL_FTH: Final = 0x1F
+FIFO_SRC_FTH: Final = 0x80
+FIFO_SRC_OVRN: Final = 0x40
+FIFO_SRC_EMPTY: Final = 0x20
+
 _STATUS_FIELDS: Final[tuple[str, ...]] = ("ZYX{0}OR", "Z{0}OR", "Y{0}OR", "X{0}OR", "ZYX{0}DA", "Z{0}DA", "Y{0}DA",
                   "X{0}DA")
 
@@ -178,8 +212,8 @@ class Lsm303d(StSpiTarget):
                  rotation: Sequence[Sequence[float]] | None = None,
                  accel_errors: AxisErrors | None = None,
                  mag_errors: AxisErrors | None = None) -> None:
-        data = frozenset((0x05, 0x06)) | frozenset(range(0x08, 0x0E)) | frozenset(
-            range(0x28, 0x2E))
+        data = frozenset((TEMP_OUT_L, TEMP_OUT_H)) | frozenset(
+            range(OUT_X_L_M, OUT_Z_H_M + 1)) | frozenset(range(OUT_X_L_A, OUT_Z_H_A + 1))
         super().__init__(kernel, name, rng, data)
         self.env = env
         self.int1_pin = int1_pin
@@ -212,10 +246,10 @@ class Lsm303d(StSpiTarget):
         for i, reg in enumerate(_OUT_M):
             regs.hook(reg, on_read=partial(self._r_out, self.mag, i))
         # The same reads, a whole burst at a time (StSpiTarget._burst_read).
-        for a in range(0x28, 0x2E):
-            self._out_blocks[a] = (0x28, 0x2D, self.accel)
-        for a in range(0x08, 0x0E):
-            self._out_blocks[a] = (0x08, 0x0D, self.mag)
+        for a in range(OUT_X_L_A, OUT_Z_H_A + 1):
+            self._out_blocks[a] = (OUT_X_L_A, OUT_Z_H_A, self.accel)
+        for a in range(OUT_X_L_M, OUT_Z_H_M + 1):
+            self._out_blocks[a] = (OUT_X_L_M, OUT_Z_H_M, self.mag)
         for pin in (int1_pin, int2_pin):
             if pin is not None:
                 pin.low()
@@ -238,15 +272,15 @@ class Lsm303d(StSpiTarget):
             raw = (32767, 32767, 32767)
         else:
             env, err = self.env, self.accel_errors
-            ctrl2 = self.regs.values[0x21]
-            bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> 6])  # CTRL2.ABW
+            ctrl2 = self.regs.values[CTRL2]
+            bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> CTRL2_ABW_LSB])
             err.extra_bias = faults.bias_step
             nz = faults.noise
             err.extra_sigma = nz.get("accel", 0.0) if nz else 0.0
             rot = self.rotation
             a = err.apply(t_ns, env.accel_m_s2 if rot is None else rotate(rot, env.accel_m_s2),
                           2.0 * bw, env.board_temperature_c)
-            afs = (ctrl2 >> 3) & 7  # CTRL2.AFS
+            afs = (ctrl2 & CTRL2_AFS) >> CTRL2_AFS_LSB
             lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0
             raw = (to_int16(a[0] / lsb), to_int16(a[1] / lsb), to_int16(a[2] / lsb))
         self._last_accel = raw
@@ -272,7 +306,7 @@ class Lsm303d(StSpiTarget):
                           env.board_temperature_c)
             lsb = MAG_MGAUSS_LSB[regs.get("CTRL6.MFS")] * 1e-3
             v = regs.values
-            off = [_s16(v[0x16 + 2 * j], v[0x17 + 2 * j]) for j in range(3)]
+            off = [_s16(v[OFFSET_X_L_M + 2 * j], v[OFFSET_X_L_M + 1 + 2 * j]) for j in range(3)]
             raw = (to_int16(b[0] / lsb - off[0]), to_int16(b[1] / lsb - off[1]),
                    to_int16(b[2] / lsb - off[2]))
         self._last_mag = raw
@@ -285,20 +319,21 @@ class Lsm303d(StSpiTarget):
 
     def _w_ctrl0(self, value: int, old: int) -> None:
         self._update_fifo()
-        if value & 0x80:
+        if value & CTRL0_BOOT:
             self._start_boot()
 
     def _w_ctrl2(self, value: int, old: int) -> None:
-        if (value >> 3) & 7 > 4:
-            self._warn_once("afs", f"reserved AFS={(value >> 3) & 7:03b}: +-16 g sensitivity")
+        afs = (value & CTRL2_AFS) >> CTRL2_AFS_LSB
+        if afs > 4:
+            self._warn_once("afs", f"reserved AFS={afs:03b}: +-16 g sensitivity")
 
     def _w_ctrl1(self, value: int, old: int) -> None:
         acc = self.accel
-        acc.axes = value & 0b111
-        bdu = bool(value & 0x08)
+        acc.axes = value & CTRL1_AXES
+        bdu = bool(value & CTRL1_BDU)
         acc.set_bdu(bdu)
         self.mag.set_bdu(bdu)
-        aodr = value >> 4
+        aodr = value >> CTRL1_AODR_LSB
         if aodr >= len(ACCEL_ODR_MHZ):
             self._warn_once("aodr", f"AODR={aodr:04b} not in the datasheet table: power-down")
         odr = ACCEL_ODR_MHZ[aodr] if aodr < len(ACCEL_ODR_MHZ) else 0
@@ -380,28 +415,31 @@ class Lsm303d(StSpiTarget):
         v = self.regs.values
         acc, mag, faults = self.accel, self.mag, self.faults
         dead = faults.drdy_stuck or faults.absent
-        active = v[0x12] & 0x08                 # INT_CTRL_M.IEA: active high
-        fifo = acc.fifo_src(v[0x2E] & 0x1F)     # FIFO_CTRL.FTH
-        c3, c4 = v[0x22], v[0x23]               # CTRL3, CTRL4
+        active = v[INT_CTRL_M] & INT_CTRL_M_IEA
+        fifo = acc.fifo_src(v[FIFO_CTRL] & FIFO_CTRL_FTH)
+        c3, c4 = v[CTRL3], v[CTRL4]
         acc_next = mag_next = False
         if int1 is not None:
-            on = 0 if dead else int(bool((c3 & 0x04 and acc.da) or (c3 & 0x02 and mag.da)
-                                         or (c3 & 0x01 and fifo & 0x20)))
+            on = 0 if dead else int(bool((c3 & CTRL3_INT1_DRDY_A and acc.da)
+                                         or (c3 & CTRL3_INT1_DRDY_M and mag.da)
+                                         or (c3 & CTRL3_INT1_EMPTY and fifo & FIFO_SRC_EMPTY)))
             self._set_pin(int1, on if active else 1 - on, t_ns)
             if not dead:
                 if not on:
-                    acc_next = bool(c3 & 0x05)
-                    mag_next = bool(c3 & 0x02)
-                elif c3 & 0x01:
+                    acc_next = bool(c3 & (CTRL3_INT1_DRDY_A | CTRL3_INT1_EMPTY))
+                    mag_next = bool(c3 & CTRL3_INT1_DRDY_M)
+                elif c3 & CTRL3_INT1_EMPTY:
                     acc_next = True
         if int2 is not None:
-            on = 0 if dead else int(bool((c4 & 0x08 and acc.da) or (c4 & 0x04 and mag.da)
-                                         or (c4 & 0x02 and fifo & 0x40)
-                                         or (c4 & 0x01 and fifo & 0x80)))
+            on = 0 if dead else int(bool((c4 & CTRL4_INT2_DRDY_A and acc.da)
+                                         or (c4 & CTRL4_INT2_DRDY_M and mag.da)
+                                         or (c4 & CTRL4_INT2_OVERRUN and fifo & FIFO_SRC_OVRN)
+                                         or (c4 & CTRL4_INT2_FTH and fifo & FIFO_SRC_FTH)))
             self._set_pin(int2, on if active else 1 - on, t_ns)
             if not dead and not on:
-                acc_next = acc_next or bool(c4 & 0x0B)
-                mag_next = mag_next or bool(c4 & 0x04)
+                acc_next = acc_next or bool(
+                    c4 & (CTRL4_INT2_DRDY_A | CTRL4_INT2_OVERRUN | CTRL4_INT2_FTH))
+                mag_next = mag_next or bool(c4 & CTRL4_INT2_DRDY_M)
         t_acc = acc.next_sample_ns() if acc_next else None
         t_mag = mag.next_sample_ns() if mag_next else None
         if t_acc is None:

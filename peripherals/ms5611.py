@@ -51,6 +51,9 @@ CMD_ADC_READ: Final = 0x00
 CMD_CONVERT_D1: Final = 0x40
 CMD_CONVERT_D2: Final = 0x50
 CMD_PROM_READ: Final = 0xA0
+#: The command's high nibble (which command) and its bits 3:1 (OSR code, PROM address).
+CMD_KIND: Final = 0xF0
+CMD_ARG: Final = 0x07
 
 #: Datasheet coefficients with words 0 and 7 = 0: a valid CRC-4 (fixtures README section 4).
 DEFAULT_PROM: Final[tuple[int, ...]] = (0, 40127, 36924, 23317, 23282, 33464, 28312, 0)
@@ -272,14 +275,14 @@ class Ms5611(SpiTarget):
             return b""
         if cmd == CMD_ADC_READ:
             return self._adc_read(t_ns)
-        hi = cmd & 0xF0
-        osr_bits = (cmd >> 1) & 0x7
+        hi = cmd & CMD_KIND
+        osr_bits = (cmd >> 1) & CMD_ARG
         if hi in (CMD_CONVERT_D1, CMD_CONVERT_D2) and osr_bits < 5 and not cmd & 1:
             self._convert(1 if hi == CMD_CONVERT_D1 else 2, _OSR_CODES[osr_bits], t_end_ns)
             return b""
         if hi == CMD_PROM_READ:
-            word = self.prom[(cmd >> 1) & 0x7]
-            if (cmd >> 1) & 0x7 == 7 and self.faults.wrong_id is not None:
+            word = self.prom[(cmd >> 1) & CMD_ARG]
+            if (cmd >> 1) & CMD_ARG == 7 and self.faults.wrong_id is not None:
                 word = self.faults.wrong_id & 0xFFFF
             return bytes((word >> 8, word & 0xFF))
         self.ignored_commands += 1

@@ -35,11 +35,11 @@ from __future__ import annotations
 import dataclasses
 import logging
 from dataclasses import dataclass, field
-from typing import Callable, Final, Iterable
+from typing import Callable, Final, Iterable, Mapping
 
 from mypy_extensions import mypyc_attr
 
-__all__ = ["Field", "Reg", "RegisterFile", "RegisterMapError"]
+__all__ = ["Field", "Reg", "RegisterFile", "RegisterMapError", "check_names"]
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +105,35 @@ class Reg:
         for f in self.fields:
             m |= f.mask
         return m
+
+
+def check_names(names: Mapping[str, object], regs: Iterable[Reg], where: str = "") -> int:
+    """Tie a module's register constants to a register table: ``REG`` (a register's name,
+    upper-cased) must hold its address and ``REG_FIELD`` its field's mask.
+
+    Behaviour and drivers name registers and bits with plain ``Final`` ints (mypyc inlines
+    them; a table lookup per access would cost on the hot paths), so a typo in one would go
+    unseen; this finds it. Other names (``CTRL1_AODR_1600HZ``, a field value) are not looked
+    at. Returns how many names were checked; raises :class:`RegisterMapError` naming the first
+    that disagrees.
+    """
+    table = list(regs)
+    expected: dict[str, tuple[int, str]] = {}
+    for reg in table:
+        for f in reg.fields:
+            expected[f"{reg.name}_{f.name}".upper()] = (f.mask, f"field {reg.name}.{f.name}")
+    for reg in table:  # a register's own name wins over a REG_FIELD spelling it
+        expected[reg.name.upper()] = (reg.addr, f"register {reg.name}")
+    checked = 0
+    for name, value in names.items():
+        want = expected.get(name)
+        if want is None or type(value) is not int:
+            continue
+        checked += 1
+        if value != want[0]:
+            raise RegisterMapError(f"{where}{name} = 0x{value:02X}, but the table's {want[1]} "
+                                   f"is 0x{want[0]:02X}")
+    return checked
 
 
 class RegisterFile:

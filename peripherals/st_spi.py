@@ -74,6 +74,14 @@ FIFO_DEPTH: Final = 32
 FIFO_BYPASS: Final = 0
 FIFO_FIFO: Final = 1
 FIFO_STREAM: Final = 2
+#: STATUS (L3GD20 STATUS_REG, LSM303D STATUS_A/STATUS_M) and FIFO_SRC bits, the same on both
+#: parts (FIFO_SRC bit 7 is WTM on the L3GD20, FTH on the LSM303D).
+STATUS_ZYXOR: Final = 0x80
+STATUS_ZYXDA: Final = 0x08
+FIFO_SRC_THRESHOLD: Final = 0x80
+FIFO_SRC_OVRN: Final = 0x40
+FIFO_SRC_EMPTY: Final = 0x20
+FIFO_SRC_FSS: Final = 0x1F
 #: First and last output-register address of the 3-axis block (both parts, accel on LSM303D).
 OUT_FIRST: Final = 0x28
 OUT_LAST: Final = 0x2D
@@ -304,13 +312,14 @@ class SampleChannel:
     def status_byte(self) -> int:
         """STATUS layout of both parts: xyzOR in 7..4, xyzDA in 3..0 (bit 0 = X)."""
         da, ovr = self.da, self.ovr
-        return (0x80 if ovr else 0) | (ovr << 4) | (0x08 if da else 0) | da
+        return (STATUS_ZYXOR if ovr else 0) | (ovr << 4) | (STATUS_ZYXDA if da else 0) | da
 
     def fifo_src(self, threshold: int) -> int:
         """FIFO_SRC: threshold flag, OVRN, EMPTY, FSS (see the module notes)."""
         n = len(self.fifo)
-        return ((0x80 if n and n >= threshold else 0) | (0x40 if self.fifo_ovrn else 0)
-                | (0x20 if n == 0 else 0) | min(n, 31))
+        return ((FIFO_SRC_THRESHOLD if n and n >= threshold else 0)
+                | (FIFO_SRC_OVRN if self.fifo_ovrn else 0) | (FIFO_SRC_EMPTY if n == 0 else 0)
+                | min(n, FIFO_SRC_FSS))
 
 
 class StSpiTarget(SpiTarget):

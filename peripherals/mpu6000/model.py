@@ -42,11 +42,49 @@ from board.spi import SpiTarget
 from peripherals.errors import AxisErrors, ImuErrorModel
 from peripherals.faults import FaultState
 from peripherals.mpu6000.registers import (
+    ACCEL_CONFIG,
+    ACCEL_CONFIG_AFS_SEL,
+    ACCEL_CONFIG_AFS_SEL_LSB,
+    CLKSEL_STOP,
+    CONFIG,
+    CONFIG_DLPF_CFG,
     DATA_FIRST,
     FAST_READ,
+    FIFO_EN,
+    FIFO_R_W,
     FIFO_SIZE,
+    GYRO_CONFIG,
+    GYRO_CONFIG_FS_SEL,
+    GYRO_CONFIG_FS_SEL_LSB,
+    INT_ENABLE,
+    INT_ENABLE_DATA_RDY_EN,
+    INT_ENABLE_FIFO_OFLOW_EN,
+    INT_PIN_CFG,
+    INT_PIN_CFG_INT_LEVEL,
+    INT_PIN_CFG_INT_OPEN,
+    INT_PIN_CFG_INT_RD_CLEAR,
+    INT_PIN_CFG_LATCH_INT_EN,
+    INT_STATUS,
+    INT_STATUS_DATA_RDY_INT,
+    INT_STATUS_FIFO_OFLOW_INT,
+    PWR_MGMT_1,
+    PWR_MGMT_1_CLKSEL,
+    PWR_MGMT_1_DEVICE_RESET,
+    PWR_MGMT_1_SLEEP,
+    PWR_MGMT_1_TEMP_DIS,
+    PWR_MGMT_2,
     REV_C_IDS,
+    SELF_TEST_BITS,
     SELF_TEST_TRIM,
+    SIGNAL_PATH_RESET,
+    SIGNAL_PATH_RESET_ACCEL_RESET,
+    SIGNAL_PATH_RESET_GYRO_RESET,
+    SMPLRT_DIV,
+    USER_CTRL,
+    USER_CTRL_FIFO_EN,
+    USER_CTRL_FIFO_RESET,
+    USER_CTRL_SIG_COND_RESET,
+    USER_CTRL_STROBES,
     mpu6000_registers,
     self_test_response,
 )
@@ -67,14 +105,11 @@ DEG: Final = 0.017453292519943295
 RESET_TIME_NS: Final = 100 * NS_PER_MS
 INT_PULSE_NS: Final = 50_000
 REG_CLOCK_LIMIT_HZ: Final = 1_100_000
+#: SPI framing (sheet 1.3): the command byte is R/W (bit 7, 1 = read) and the address (6:0).
+SPI_READ: Final = 0x80
+SPI_ADDR_MASK: Final = 0x7F
 DATA_CLOCK_LIMIT_HZ: Final = 22_000_000
 
-# Register addresses used on hot paths.
-_INT_STATUS: Final = 0x3A
-_FIFO_COUNTH: Final = 0x72
-_FIFO_R_W: Final = 0x74
-_DATA_RDY_INT: Final = 0x01
-_FIFO_OFLOW_INT: Final = 0x10
 
 
 def default_gyro_errors() -> AxisErrors:
@@ -182,36 +217,38 @@ class Mpu6000(SpiTarget):
         self._retime()
 
     def _on_pwr_mgmt_1(self, value: int, old: int) -> None:
-        if value & 0x80:
+        if value & PWR_MGMT_1_DEVICE_RESET:
             self._device_reset(self._t)
             return
         self._retime()
 
     def _on_user_ctrl(self, value: int, old: int) -> None:
-        if value & 0x04:  # FIFO_RESET
+        if value & USER_CTRL_FIFO_RESET:
             self.fifo.clear()
-        if value & 0x01:  # SIG_COND_RESET: signal paths and sensor registers
+        if value & USER_CTRL_SIG_COND_RESET:  # signal paths and sensor registers
             self.engine.reset_filters()
             self.regs.values[DATA_FIRST:DATA_FIRST + 14] = bytes(14)
-        self.regs.values[0x6A] = value & ~0x0F & 0xFF  # strobes self-clear (DMP_RESET too)
+        # The strobes clear themselves (DMP_RESET too).
+        self.regs.values[USER_CTRL] = value & ~USER_CTRL_STROBES & 0xFF
         self._schedule_int()
 
     def _on_signal_path_reset(self, value: int, old: int) -> None:
-        self.engine.reset_filters(gyro=bool(value & 4), accel=bool(value & 2))
-        self.regs.values[0x68] = 0
+        self.engine.reset_filters(gyro=bool(value & SIGNAL_PATH_RESET_GYRO_RESET),
+                                  accel=bool(value & SIGNAL_PATH_RESET_ACCEL_RESET))
+        self.regs.values[SIGNAL_PATH_RESET] = 0
 
     def _on_int_config(self, value: int, old: int) -> None:
         self._schedule_int()
 
     def _on_int_pin_cfg(self, value: int, old: int) -> None:
-        if self._int_on() and not value & 0x20:
+        if self._int_on() and not value & INT_PIN_CFG_LATCH_INT_EN:
             self._int_active = False  # leaving latched mode ends a held level
         self._int_level()
         self._schedule_int()
 
     def _read_int_status(self, value: int) -> int:
-        self.regs.values[_INT_STATUS] = 0
-        if self._int_on() and self.regs.values[0x37] & 0x20:
+        self.regs.values[INT_STATUS] = 0
+        if self._int_on() and self.regs.values[INT_PIN_CFG] & INT_PIN_CFG_LATCH_INT_EN:
             self._int_active = False
             self._int_level()
         return value
@@ -265,14 +302,16 @@ class Mpu6000(SpiTarget):
 
     def _sample_period_ns(self) -> int:
         v = self.regs.values
-        fast = (v[0x1A] & 7) in (0, 7)
-        return (125_000 if fast else 1_000_000) * (1 + v[0x19])
+        fast = (v[CONFIG] & CONFIG_DLPF_CFG) in (0, 7)
+        return (125_000 if fast else 1_000_000) * (1 + v[SMPLRT_DIV])
 
     def _retime(self) -> None:
         """A register that shapes sampling changed (the caller caught up to ``_t`` first)."""
         v = self.regs.values
         t = self._t
-        awake = self.powered and not v[0x6B] & 0x40 and (v[0x6B] & 7) != 7
+        pwr = v[PWR_MGMT_1]
+        awake = (self.powered and not pwr & PWR_MGMT_1_SLEEP
+                 and (pwr & PWR_MGMT_1_CLKSEL) != CLKSEL_STOP)
         period = self._sample_period_ns()
         if self._awake and awake:
             self._t0 += self._k * self._period  # keep the phase: next sample one period on
@@ -283,8 +322,11 @@ class Mpu6000(SpiTarget):
             self.engine.wake(t)
         self._period = period
         self._awake = awake
-        self.engine.configure(v[0x1A] & 7, v[0x19], (v[0x1B] >> 3) & 3, (v[0x1C] >> 3) & 3,
-                              v[0x1B] & 0xE0, v[0x1C] & 0xE0, v[0x6C])
+        gyro, accel = v[GYRO_CONFIG], v[ACCEL_CONFIG]
+        self.engine.configure(v[CONFIG] & CONFIG_DLPF_CFG, v[SMPLRT_DIV],
+                              (gyro & GYRO_CONFIG_FS_SEL) >> GYRO_CONFIG_FS_SEL_LSB,
+                              (accel & ACCEL_CONFIG_AFS_SEL) >> ACCEL_CONFIG_AFS_SEL_LSB,
+                              gyro & SELF_TEST_BITS, accel & SELF_TEST_BITS, v[PWR_MGMT_2])
         self._schedule_int()
 
     def _catch_up(self, t_ns: int) -> None:
@@ -296,10 +338,11 @@ class Mpu6000(SpiTarget):
         if n <= 0:
             return
         v = self.regs.values
-        fifo_en = v[0x23] if v[0x6A] & 0x40 else 0
+        fifo_en = v[FIFO_EN] if v[USER_CTRL] & USER_CTRL_FIFO_EN else 0
         rows, record = self.engine.produce(
             self.env, self._t0, self._period, self._k + 1, n, fifo_en, FIFO_SIZE,
-            self.faults, self.bias_step_sensor, temp_enabled=not v[0x6B] & 0x08)
+            self.faults, self.bias_step_sensor,
+            temp_enabled=not v[PWR_MGMT_1] & PWR_MGMT_1_TEMP_DIS)
         self._k = k_max
         self.samples_produced += n
         v[DATA_FIRST:DATA_FIRST + 14] = rows
@@ -309,7 +352,7 @@ class Mpu6000(SpiTarget):
                 # The FIFO fills faster than the sample clock: by the next look it is full
                 # and has overflowed (the oldest bytes lost, records misaligned).
                 self._fifo_push(record * (FIFO_SIZE // len(record) + 1))
-        v[_INT_STATUS] |= _DATA_RDY_INT
+        v[INT_STATUS] |= INT_STATUS_DATA_RDY_INT
 
     # -- FIFO -----------------------------------------------------------------------------------
 
@@ -319,7 +362,7 @@ class Mpu6000(SpiTarget):
         excess = len(fifo) - FIFO_SIZE
         if excess > 0:
             del fifo[:excess]  # the oldest bytes are lost; record alignment goes with them
-            self.regs.values[_INT_STATUS] |= _FIFO_OFLOW_INT
+            self.regs.values[INT_STATUS] |= INT_STATUS_FIFO_OFLOW_INT
 
     def _fifo_pop(self, n: int) -> bytes:
         fifo = self.fifo
@@ -353,8 +396,8 @@ class Mpu6000(SpiTarget):
         start = 0
         if self._cmd < 0:
             c = self._cmd = tx[0]
-            self._reading = bool(c & 0x80)
-            self._addr = c & 0x7F
+            self._reading = bool(c & SPI_READ)
+            self._addr = c & SPI_ADDR_MASK
             self._t = t_ns
             self._catch_up(t_ns)
             start = 1
@@ -364,7 +407,7 @@ class Mpu6000(SpiTarget):
             return bytes(n)
         if self._reading:
             self._did_read = True
-            if self._addr == _FIFO_R_W:
+            if self._addr == FIFO_R_W:
                 return (b"\x00" if start else b"") + self._fifo_pop(n - start)
             return (b"\x00" if start else b"") + self._read_bytes(n - start)
         self._write_bytes(tx[start:])
@@ -381,8 +424,8 @@ class Mpu6000(SpiTarget):
                 self._refused = True
             else:
                 out[i] = read(addr)
-            if addr != _FIFO_R_W:
-                addr = (addr + 1) & 0x7F
+            if addr != FIFO_R_W:
+                addr = (addr + 1) & SPI_ADDR_MASK
         self._addr = addr
         return bytes(out)
 
@@ -395,8 +438,8 @@ class Mpu6000(SpiTarget):
             if self._t < self._ready_ns:  # a DEVICE_RESET earlier in this burst
                 break
             self.regs.write(addr, b)
-            if addr != _FIFO_R_W:
-                addr = (addr + 1) & 0x7F
+            if addr != FIFO_R_W:
+                addr = (addr + 1) & SPI_ADDR_MASK
         self._addr = addr
 
     def _deselect(self, t_ns: int) -> None:
@@ -405,9 +448,9 @@ class Mpu6000(SpiTarget):
             if self.too_fast_count == 1:
                 log.warning("%s: register access at %d Hz above the 1.1 MHz limit: reads 0xFF, "
                             "writes ignored", self.name, self.clock_hz)
-        if self._did_read and self.regs.values[0x37] & 0x10:  # INT_RD_CLEAR
+        if self._did_read and self.regs.values[INT_PIN_CFG] & INT_PIN_CFG_INT_RD_CLEAR:
             self._read_int_status(0)
-        if self._ovf_entry is not None or self.regs.values[0x38] & 0x10:
+        if self._ovf_entry is not None or self.regs.values[INT_ENABLE] & INT_ENABLE_FIFO_OFLOW_EN:
             self._schedule_int()
 
     # -- INT pin --------------------------------------------------------------------------------
@@ -436,12 +479,12 @@ class Mpu6000(SpiTarget):
         pin = self.drdy_pin
         if pin is None or not self.powered:
             return
-        cfg = self.regs.values[0x37]
-        active_low = bool(cfg & 0x80)
+        cfg = self.regs.values[INT_PIN_CFG]
+        active_low = bool(cfg & INT_PIN_CFG_INT_LEVEL)
         self._on_drive = 0 if active_low else 1
-        self._off_drive = None if cfg & 0x40 else (1 if active_low else 0)
+        self._off_drive = None if cfg & INT_PIN_CFG_INT_OPEN else (1 if active_low else 0)
         if self._int_on():
-            if cfg & 0x20:
+            if cfg & INT_PIN_CFG_LATCH_INT_EN:
                 self._pulse_end_ns = -1  # latched: held until INT_STATUS is cleared
             if self._pulse_end_ns >= 0:
                 pin.pulse(self._on_drive, self._off_drive, self._pulse_end_ns)
@@ -462,7 +505,7 @@ class Mpu6000(SpiTarget):
         faults = self.faults
         if faults.drdy_stuck or faults.absent:
             return
-        if self.regs.values[0x37] & 0x20:  # latched: held until INT_STATUS is cleared
+        if self.regs.values[INT_PIN_CFG] & INT_PIN_CFG_LATCH_INT_EN:  # held until INT_STATUS read
             if not self._int_on():
                 self._int_active = True
                 self._pulse_end_ns = -1
@@ -488,11 +531,11 @@ class Mpu6000(SpiTarget):
         v = self.regs.values
         t = max(self._t, k.now_ns)
         k_next = (t - self._t0) // self._period + 1
-        if v[0x38] & 0x01:
+        if v[INT_ENABLE] & INT_ENABLE_DATA_RDY_EN:
             self._drdy_entry = k.post(self._t0 + k_next * self._period, PRIO_HW,
                                       self._on_drdy, ())
-        if v[0x38] & 0x10 and v[0x6A] & 0x40:
-            rec = self.engine.record_bytes(v[0x23])
+        if v[INT_ENABLE] & INT_ENABLE_FIFO_OFLOW_EN and v[USER_CTRL] & USER_CTRL_FIFO_EN:
+            rec = self.engine.record_bytes(v[FIFO_EN])
             if rec:
                 k_ovf = self._k + (FIFO_SIZE - len(self.fifo)) // rec + 1
                 self._ovf_entry = k.post(self._t0 + max(k_ovf, k_next) * self._period,
@@ -510,7 +553,7 @@ class Mpu6000(SpiTarget):
         self._ovf_entry = None
         self._t = t = self.kernel.now_ns
         self._catch_up(t)
-        if self.regs.values[_INT_STATUS] & _FIFO_OFLOW_INT:
+        if self.regs.values[INT_STATUS] & INT_STATUS_FIFO_OFLOW_INT:
             self._assert_int()
         self._schedule_int()
 

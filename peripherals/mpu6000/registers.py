@@ -27,6 +27,62 @@ __all__ = [
 
 WHO_AM_I_VALUE: Final = 0x68
 FIFO_SIZE: Final = 1024
+
+# Register addresses and field masks, named ``REG`` and ``REG_FIELD`` after the table below
+# (tests/peripherals/test_register_names.py checks every such name against it). The behaviour
+# in ``model`` and ``sampling`` uses these, never a raw address or bit.
+PRODUCT_ID: Final = 0x0C
+SMPLRT_DIV: Final = 0x19
+CONFIG: Final = 0x1A
+CONFIG_DLPF_CFG: Final = 0x07
+GYRO_CONFIG: Final = 0x1B
+GYRO_CONFIG_XG_ST: Final = 0x80
+GYRO_CONFIG_FS_SEL: Final = 0x18
+GYRO_CONFIG_FS_SEL_LSB: Final = 3
+ACCEL_CONFIG: Final = 0x1C
+ACCEL_CONFIG_XA_ST: Final = 0x80
+ACCEL_CONFIG_AFS_SEL: Final = 0x18
+ACCEL_CONFIG_AFS_SEL_LSB: Final = 3
+#: XG_ST | YG_ST | ZG_ST (and XA_ST | YA_ST | ZA_ST): the self-test bits, X first from bit 7.
+SELF_TEST_BITS: Final = 0xE0
+FIFO_EN: Final = 0x23
+FIFO_EN_TEMP_FIFO_EN: Final = 0x80
+FIFO_EN_XG_FIFO_EN: Final = 0x40
+FIFO_EN_YG_FIFO_EN: Final = 0x20
+FIFO_EN_ZG_FIFO_EN: Final = 0x10
+FIFO_EN_ACCEL_FIFO_EN: Final = 0x08
+INT_PIN_CFG: Final = 0x37
+INT_PIN_CFG_INT_LEVEL: Final = 0x80
+INT_PIN_CFG_INT_OPEN: Final = 0x40
+INT_PIN_CFG_LATCH_INT_EN: Final = 0x20
+INT_PIN_CFG_INT_RD_CLEAR: Final = 0x10
+INT_ENABLE: Final = 0x38
+INT_ENABLE_FIFO_OFLOW_EN: Final = 0x10
+INT_ENABLE_DATA_RDY_EN: Final = 0x01
+INT_STATUS: Final = 0x3A
+INT_STATUS_FIFO_OFLOW_INT: Final = 0x10
+INT_STATUS_DATA_RDY_INT: Final = 0x01
+SIGNAL_PATH_RESET: Final = 0x68
+SIGNAL_PATH_RESET_GYRO_RESET: Final = 0x04
+SIGNAL_PATH_RESET_ACCEL_RESET: Final = 0x02
+USER_CTRL: Final = 0x6A
+USER_CTRL_FIFO_EN: Final = 0x40
+USER_CTRL_FIFO_RESET: Final = 0x04
+USER_CTRL_SIG_COND_RESET: Final = 0x01
+#: DMP_RESET | FIFO_RESET | I2C_MST_RESET | SIG_COND_RESET: strobes that clear themselves.
+USER_CTRL_STROBES: Final = 0x0F
+PWR_MGMT_1: Final = 0x6B
+PWR_MGMT_1_DEVICE_RESET: Final = 0x80
+PWR_MGMT_1_SLEEP: Final = 0x40
+PWR_MGMT_1_TEMP_DIS: Final = 0x08
+PWR_MGMT_1_CLKSEL: Final = 0x07
+#: CLKSEL 7: "stops the clock and keeps the timing generator in reset".
+CLKSEL_STOP: Final = 7
+PWR_MGMT_2: Final = 0x6C
+FIFO_COUNTH: Final = 0x72
+FIFO_COUNTL: Final = 0x73
+FIFO_R_W: Final = 0x74
+WHO_AM_I: Final = 0x75
 #: ACCEL_XOUT_H .. GYRO_ZOUT_L: the block latched per sample and served consistently.
 DATA_FIRST: Final = 0x3B
 DATA_LAST: Final = 0x48
@@ -124,7 +180,9 @@ def mpu6000_registers(product_id: int, trims: tuple[int, int, int, int]) -> list
             Field("FSYNC_INT_LEVEL", 3), Field("FSYNC_INT_EN", 2), Field("I2C_BYPASS_EN", 1)]),
         Reg(0x38, "INT_ENABLE", fields=[Field("MOT_EN", 6), Field("FIFO_OFLOW_EN", 4),
                                         Field("I2C_MST_INT_EN", 3), Field("DATA_RDY_EN", 0)]),
-        _ro(0x3A, "INT_STATUS", "read clears; bits as INT_ENABLE"),
+        Reg(0x3A, "INT_STATUS", access="r", doc="read clears; bits as INT_ENABLE", fields=[
+            Field("MOT_INT", 6), Field("FIFO_OFLOW_INT", 4), Field("I2C_MST_INT", 3),
+            Field("DATA_RDY_INT", 0)]),
     ]
     for i, name in enumerate(("ACCEL_XOUT", "ACCEL_YOUT", "ACCEL_ZOUT", "TEMP_OUT",
                               "GYRO_XOUT", "GYRO_YOUT", "GYRO_ZOUT")):

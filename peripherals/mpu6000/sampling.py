@@ -25,7 +25,20 @@ import numpy as np
 
 from peripherals.errors import ImuErrorModel
 from peripherals.faults import FaultState
-from peripherals.mpu6000.registers import ACCEL_LSB_PER_G, DEG, DLPF_TABLE, GYRO_LSB_PER_DPS
+from peripherals.mpu6000.registers import (
+    ACCEL_CONFIG_XA_ST,
+    ACCEL_LSB_PER_G,
+    DEG,
+    DLPF_TABLE,
+    FIFO_EN_ACCEL_FIFO_EN,
+    FIFO_EN_TEMP_FIFO_EN,
+    FIFO_EN_XG_FIFO_EN,
+    FIFO_EN_YG_FIFO_EN,
+    FIFO_EN_ZG_FIFO_EN,
+    GYRO_CONFIG_XG_ST,
+    GYRO_LSB_PER_DPS,
+    SELF_TEST_BITS,
+)
 from peripherals.mpu6000.rotation import Matrix3
 from peripherals.physics import Environment
 
@@ -85,11 +98,11 @@ class SampleEngine:
         self._lsb_g = GYRO_LSB_PER_DPS[fs_sel] / DEG
         self._lsb_a = ACCEL_LSB_PER_G[afs_sel] / G0 * (2.0 if self.rev_c else 1.0)
         # Self-test: the trim-derived response is added on the axes whose ST bit is set.
-        self._g_on = bool(gyro_st & 0xE0)
-        self._st_gyro = tuple(v if gyro_st & (0x80 >> i) else 0.0
+        self._g_on = bool(gyro_st & SELF_TEST_BITS)
+        self._st_gyro = tuple(v if gyro_st & (GYRO_CONFIG_XG_ST >> i) else 0.0
                               for i, v in enumerate(self._st_gyro_full))
-        self._a_on = bool(accel_st & 0xE0)
-        self._st_accel = tuple(v if accel_st & (0x80 >> i) else 0.0
+        self._a_on = bool(accel_st & SELF_TEST_BITS)
+        self._st_accel = tuple(v if accel_st & (ACCEL_CONFIG_XA_ST >> i) else 0.0
                                for i, v in enumerate(self._st_accel_full))
         standby = [(pwr_mgmt_2 >> b) & 1 for b in (5, 4, 3)] + [0] + \
             [(pwr_mgmt_2 >> b) & 1 for b in (2, 1, 0)]
@@ -100,9 +113,10 @@ class SampleEngine:
         cols = self._cols_cache.get(fifo_en)
         if cols is None:
             cols = []
-            if fifo_en & 0x08:
+            if fifo_en & FIFO_EN_ACCEL_FIFO_EN:
                 cols += [0, 1, 2]
-            for bit, col in ((0x80, 3), (0x40, 4), (0x20, 5), (0x10, 6)):
+            for bit, col in ((FIFO_EN_TEMP_FIFO_EN, 3), (FIFO_EN_XG_FIFO_EN, 4),
+                             (FIFO_EN_YG_FIFO_EN, 5), (FIFO_EN_ZG_FIFO_EN, 6)):
                 if fifo_en & bit:
                     cols.append(col)
             self._cols_cache[fifo_en] = cols

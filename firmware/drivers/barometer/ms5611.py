@@ -43,6 +43,8 @@ SPI_DEVICE_BARO: Final = 3
 CMD_RESET: Final = 0x1E
 CMD_ADC_READ: Final = 0x00
 CMD_PROM_READ: Final = 0xA0
+CMD_CONVERT_D1: Final = 0x40        # pressure; | OSR code << 1
+CMD_CONVERT_D2: Final = 0x50        # temperature; | OSR code << 1
 _OSR_BITS: Final = {256: 0, 512: 1, 1024: 2, 2048: 3, 4096: 4}
 #: Datasheet maximum conversion time per OSR, in us.
 _CONV_MAX_US: Final = {256: 600, 512: 1170, 1024: 2280, 2048: 4540, 4096: 9040}
@@ -178,7 +180,8 @@ class Ms5611Driver(SensorDriver):
                 self._error_reset()
                 self.perf_cycle.end()
                 return
-        cmd = (0x50 if self._phase == 0 else 0x40) | (_OSR_BITS[self.osr] << 1)
+        cmd = ((CMD_CONVERT_D2 if self._phase == 0 else CMD_CONVERT_D1)
+               | (_OSR_BITS[self.osr] << 1))
         self._command(cmd)
         self._collect = 2 if self._phase == 0 else 1
         self._phase = (self._phase + 1) % 4

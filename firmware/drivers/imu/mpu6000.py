@@ -51,35 +51,62 @@ PRODUCT_IDS: Final = frozenset({0x14, 0x15, 0x16, 0x17, 0x18,
                          0x54, 0x55, 0x56, 0x57, 0x58, 0x59, 0x5A})
 REV_C_IDS: Final = frozenset({0x14, 0x15, 0x54, 0x55})
 
-# Registers.
+# Registers and bits, in the register map's names (reference sheet 1.4, 1.5).
 PRODUCT_ID: Final = 0x0C
 SMPLRT_DIV: Final = 0x19
 CONFIG: Final = 0x1A
+CONFIG_DLPF_CFG: Final = 0x07
 GYRO_CONFIG: Final = 0x1B
+GYRO_CONFIG_FS_SEL_2000DPS: Final = 0x18         # FS_SEL 3
 ACCEL_CONFIG: Final = 0x1C
+ACCEL_CONFIG_AFS_SEL_16G: Final = 0x18           # AFS_SEL 3
+SELF_TEST_BITS: Final = 0xE0                     # X/Y/Z self-test (GYRO_ and ACCEL_CONFIG)
 FIFO_EN: Final = 0x23
+FIFO_EN_TEMP_FIFO_EN: Final = 0x80
+FIFO_EN_XG_FIFO_EN: Final = 0x40
+FIFO_EN_YG_FIFO_EN: Final = 0x20
+FIFO_EN_ZG_FIFO_EN: Final = 0x10
+FIFO_EN_ACCEL_FIFO_EN: Final = 0x08
 INT_PIN_CFG: Final = 0x37
+INT_PIN_CFG_INT_LEVEL: Final = 0x80              # 1: active low
 INT_ENABLE: Final = 0x38
+INT_ENABLE_DATA_RDY_EN: Final = 0x01
 TEMP_OUT_H: Final = 0x41
 SIGNAL_PATH_RESET: Final = 0x68
+SIGNAL_PATH_RESET_GYRO_RESET: Final = 0x04
+SIGNAL_PATH_RESET_ACCEL_RESET: Final = 0x02
+SIGNAL_PATH_RESET_TEMP_RESET: Final = 0x01
 USER_CTRL: Final = 0x6A
+USER_CTRL_FIFO_EN: Final = 0x40
+USER_CTRL_I2C_IF_DIS: Final = 0x10
+USER_CTRL_FIFO_RESET: Final = 0x04
+USER_CTRL_SIG_COND_RESET: Final = 0x01
 PWR_MGMT_1: Final = 0x6B
+PWR_MGMT_1_DEVICE_RESET: Final = 0x80
+PWR_MGMT_1_SLEEP: Final = 0x40
+PWR_MGMT_1_CLKSEL_PLL_X: Final = 0x01            # CLKSEL 1: PLL with the X gyro
+#: PWR_MGMT_1 after a reset: asleep on the internal oscillator.
+PWR_MGMT_1_RESET_VALUE: Final = PWR_MGMT_1_SLEEP
 FIFO_COUNTH: Final = 0x72
 FIFO_R_W: Final = 0x74
 WHO_AM_I: Final = 0x75
 DIR_READ: Final = 0x80
 
+#: What goes into the FIFO: the three gyro axes and the accelerometer, not the temperature.
+FIFO_SOURCES: Final = (FIFO_EN_XG_FIFO_EN | FIFO_EN_YG_FIFO_EN | FIFO_EN_ZG_FIFO_EN
+                       | FIFO_EN_ACCEL_FIFO_EN)
+
 #: (register, bits to set, bits to clear): what configure() writes and the check re-reads.
 REGISTER_CONFIG: Final[tuple[tuple[int, int, int], ...]] = (
-    (SMPLRT_DIV, 0x00, 0xFF),    # 8 kHz / (1 + 0)
-    (CONFIG, 0x00, 0x07),        # DLPF_CFG 0: 256 Hz gyro, 8 kHz
-    (GYRO_CONFIG, 0x18, 0xE0),   # FS_SEL 3, +-2000 deg/s, self-test off
-    (ACCEL_CONFIG, 0x18, 0xE0),  # AFS_SEL 3, +-16 g, self-test off
-    (FIFO_EN, 0x78, 0x80),       # XG, YG, ZG, ACCEL into the FIFO; not TEMP
-    (INT_PIN_CFG, 0x80, 0x00),   # INT_LEVEL: active low
-    (INT_ENABLE, 0x01, 0x00),    # DATA_RDY_EN
-    (USER_CTRL, 0x50, 0x00),     # FIFO_EN | I2C_IF_DIS
-    (PWR_MGMT_1, 0x01, 0x40),    # CLKSEL PLL X gyro, SLEEP off
+    (SMPLRT_DIV, 0x00, 0xFF),                                    # 8 kHz / (1 + 0)
+    (CONFIG, 0x00, CONFIG_DLPF_CFG),                             # 256 Hz gyro, 8 kHz
+    (GYRO_CONFIG, GYRO_CONFIG_FS_SEL_2000DPS, SELF_TEST_BITS),   # +-2000 deg/s
+    (ACCEL_CONFIG, ACCEL_CONFIG_AFS_SEL_16G, SELF_TEST_BITS),    # +-16 g
+    (FIFO_EN, FIFO_SOURCES, FIFO_EN_TEMP_FIFO_EN),
+    (INT_PIN_CFG, INT_PIN_CFG_INT_LEVEL, 0x00),                  # INT active low
+    (INT_ENABLE, INT_ENABLE_DATA_RDY_EN, 0x00),
+    (USER_CTRL, USER_CTRL_FIFO_EN | USER_CTRL_I2C_IF_DIS, 0x00),
+    (PWR_MGMT_1, PWR_MGMT_1_CLKSEL_PLL_X, PWR_MGMT_1_SLEEP),
 )
 
 SAMPLE_RATE_HZ: Final = 8000
@@ -97,6 +124,9 @@ REGISTER_CHECK_US: Final = 10_000
 TEMPERATURE_US: Final = 1_000_000
 STUCK_CYCLES: Final = 100
 NO_ANSWER_RESET: Final = 3
+
+#: FIFO count read: the command and two clock-out bytes (FIFO_COUNTH, FIFO_COUNTL).
+_FIFO_COUNT_TX: Final = bytes((FIFO_COUNTH | DIR_READ, 0, 0))
 
 RESET: Final = "reset"
 WAIT_FOR_RESET: Final = "wait_for_reset"
@@ -191,7 +221,7 @@ class Mpu6000Driver(SensorDriver):
 
     def write_reg(self, reg: int, value: int) -> None:
         self._set_clock(REG_CLOCK_HZ)
-        self.spi.transfer(bytes((reg & 0x7F, value & 0xFF)))
+        self.spi.transfer(bytes((reg & ~DIR_READ & 0xFF, value & 0xFF)))
 
     def modify_reg(self, reg: int, set_bits: int, clear_bits: int) -> None:
         orig = self.read_reg(reg)
@@ -268,7 +298,7 @@ class Mpu6000Driver(SensorDriver):
             self._cycle()
         elif state == RESET:
             self.perf_reset.count()
-            self.write_reg(PWR_MGMT_1, 0x80)  # DEVICE_RESET
+            self.write_reg(PWR_MGMT_1, PWR_MGMT_1_DEVICE_RESET)
             if self._reset_failures == 0:
                 self._reset_start_us = self.platform.time_us()
             self.state = WAIT_FOR_RESET
@@ -281,13 +311,14 @@ class Mpu6000Driver(SensorDriver):
     def _wait_for_reset(self) -> None:
         who = self.read_reg(WHO_AM_I)
         pwr = self.read_reg(PWR_MGMT_1)
-        if who == WHO_AM_I_VALUE and pwr == 0x40:
+        if who == WHO_AM_I_VALUE and pwr == PWR_MGMT_1_RESET_VALUE:
             if self._reset_failures:
                 self.platform.info(self.name, "reset succeeded")
             self._reset_failures = 0
-            self.write_reg(PWR_MGMT_1, 0x01)         # wake, PLL with X gyro
-            self.write_reg(SIGNAL_PATH_RESET, 0x07)  # gyro, accel, temp paths
-            self.write_reg(USER_CTRL, 0x11)          # SIG_COND_RESET | I2C_IF_DIS
+            self.write_reg(PWR_MGMT_1, PWR_MGMT_1_CLKSEL_PLL_X)  # wake
+            self.write_reg(SIGNAL_PATH_RESET, SIGNAL_PATH_RESET_GYRO_RESET
+                           | SIGNAL_PATH_RESET_ACCEL_RESET | SIGNAL_PATH_RESET_TEMP_RESET)
+            self.write_reg(USER_CTRL, USER_CTRL_SIG_COND_RESET | USER_CTRL_I2C_IF_DIS)
             self.state = CONFIGURE
             self._configure_failures = 0
             self.schedule_delayed(100_000)
@@ -351,9 +382,9 @@ class Mpu6000Driver(SensorDriver):
         """PX4's sequence: stop the sources, reset with the FIFO off, enable again."""
         self.perf_fifo_reset.count()
         self.write_reg(FIFO_EN, 0x00)
-        self.write_reg(USER_CTRL, 0x14)  # FIFO_RESET | I2C_IF_DIS, FIFO_EN off
-        self.write_reg(FIFO_EN, 0x78)
-        self.write_reg(USER_CTRL, 0x50)
+        self.write_reg(USER_CTRL, USER_CTRL_FIFO_RESET | USER_CTRL_I2C_IF_DIS)  # FIFO_EN off
+        self.write_reg(FIFO_EN, FIFO_SOURCES)
+        self.write_reg(USER_CTRL, USER_CTRL_FIFO_EN | USER_CTRL_I2C_IF_DIS)
         self._drdy_count = 0
         self._last_record = b""
 
@@ -434,7 +465,7 @@ class Mpu6000Driver(SensorDriver):
     def _read_fifo(self, now_us: int) -> None:
         self._set_clock(DATA_CLOCK_HZ)
         transfer = self.spi.transfer
-        r = transfer(b"\xf2\x00\x00")  # FIFO_COUNTH | DIR_READ, then H and L
+        r = transfer(_FIFO_COUNT_TX)  # FIFO_COUNTH | DIR_READ, then H and L
         count = (r[1] << 8) | r[2]
         if count == 0xFFFF:
             self._no_answer_seen("FIFO count")

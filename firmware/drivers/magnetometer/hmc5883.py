@@ -32,21 +32,27 @@ __all__ = ["DRV_MAG_DEVTYPE_HMC5883", "GAIN_LSB_PER_GA", "Hmc5883Driver"]
 
 DRV_MAG_DEVTYPE_HMC5883: Final = 0x01
 
-REG_CRA: Final = 0x00
-REG_CRB: Final = 0x01
-REG_MR: Final = 0x02
-REG_DATA: Final = 0x03
-REG_SR: Final = 0x09
-REG_ID_A: Final = 0x0A
+# Registers and fields in the datasheet's names (reference sheet 5.3, 5.4).
+CRA: Final = 0x00                   # configuration A
+CRA_DO: Final = 0x1C                # output rate code
+CRA_MS: Final = 0x03                # measurement mode: 00 normal, 01 +bias, 10 -bias
+CRB: Final = 0x01                   # configuration B
+CRB_GN: Final = 0xE0                # gain code
+CRB_GN_LSB: Final = 5
+MR: Final = 0x02                    # mode
+MR_MD: Final = 0x03                 # 00 continuous, 01 single, 1x idle
+DXRA: Final = 0x03                  # X MSB, then X LSB, Z, Y: the 6-byte data block
+SR: Final = 0x09
+IRA: Final = 0x0A                   # identification "H", "4", "3" in IRA, IRB, IRC
 ID: Final = b"H43"
 GAIN_LSB_PER_GA: Final[tuple[int, ...]] = (1370, 1090, 820, 660, 440, 390, 330, 230)
 
-CRA_NORMAL: Final = 0x10            # MA = 1 sample, DO = 15 Hz, MS = normal
-CRA_POS_BIAS: Final = 0x01
-CRA_NEG_BIAS: Final = 0x02
-CRB_RUN: Final = 0x40               # +-1.9 Ga, 820 LSB/Ga (PX4's choice)
-CRB_SELF_TEST: Final = 0x60         # +-2.5 Ga, 660 LSB/Ga
-MR_SINGLE: Final = 0x01
+CRA_NORMAL: Final = 0x10            # MA = 1 sample, DO = 15 Hz (100), MS = normal
+CRA_POS_BIAS: Final = 0x01          # MS = 01
+CRA_NEG_BIAS: Final = 0x02          # MS = 10
+CRB_RUN: Final = 0x40               # GN = 2: +-1.9 Ga, 820 LSB/Ga (PX4's choice)
+CRB_SELF_TEST: Final = 0x60         # GN = 3: +-2.5 Ga, 660 LSB/Ga
+MR_SINGLE: Final = 0x01             # MD = 01
 MEASURE_INTERVAL_US: Final = 6666   # 150 Hz
 RETRY_US: Final = 100_000
 PROBE_RETRIES: Final = 10
@@ -67,7 +73,7 @@ class Hmc5883Driver(SensorDriver):
         self.external = external
         self.want_self_test = self_test
         self.device_id = DeviceId(BUS_TYPE_I2C, bus, i2c.addr, DRV_MAG_DEVTYPE_HMC5883)
-        self.gain_lsb_per_ga = GAIN_LSB_PER_GA[CRB_RUN >> 5]
+        self.gain_lsb_per_ga = GAIN_LSB_PER_GA[CRB_RUN >> CRB_GN_LSB]
         self.perf_range = self.perf_alloc(PC_COUNT, "range (overflow)")
         self.perf_stuck = self.perf_alloc(PC_COUNT, "stuck")
         self.self_test_field_ga: tuple[float, float, float] | None = None
@@ -118,13 +124,13 @@ class Hmc5883Driver(SensorDriver):
         got = bytearray()
         for i in range(3):
             for _ in range(PROBE_RETRIES):
-                status, data = self.i2c.transfer(bytes((REG_ID_A + i,)), 1)
+                status, data = self.i2c.transfer(bytes((IRA + i,)), 1)
                 if status == 0:
                     got += data
                     break
             else:
                 return (f"no ACK at I2C address 0x{self.i2c.addr:02X} "
-                        f"(reading ID register 0x{REG_ID_A + i:02X}, {PROBE_RETRIES} tries)")
+                        f"(reading ID register 0x{IRA + i:02X}, {PROBE_RETRIES} tries)")
         if bytes(got) != ID:
             return (f"wrong ID {bytes(got)!r} = {got.hex(' ')} at 0x{self.i2c.addr:02X} "
                     f"(expected {ID!r} = {ID.hex(' ')})")
@@ -137,9 +143,9 @@ class Hmc5883Driver(SensorDriver):
 
     def _configure(self, cra: int, crb: int) -> bool:
         """Write CRA and CRB and read them back (PX4 ``write_checked_reg``)."""
-        if not (self._write(REG_CRA, cra) and self._write(REG_CRB, crb)):
+        if not (self._write(CRA, cra) and self._write(CRB, crb)):
             return False
-        back = self._read(REG_CRA, 2)
+        back = self._read(CRA, 2)
         if back is None:
             return False
         if back != bytes((cra, crb)):
@@ -150,7 +156,7 @@ class Hmc5883Driver(SensorDriver):
         return True
 
     def _trigger(self) -> None:
-        self._write(REG_MR, MR_SINGLE)
+        self._write(MR, MR_SINGLE)
         self.schedule_delayed(MEASURE_INTERVAL_US)
 
     # -- the cycle -------------------------------------------------------------------------
@@ -174,7 +180,7 @@ class Hmc5883Driver(SensorDriver):
                 self._trigger()
             self.perf_cycle.end()
             return
-        data = self._read(REG_DATA, 6)
+        data = self._read(DXRA, 6)
         if data is not None:
             self._sample(data)
         if self._state != "configure":
@@ -211,7 +217,7 @@ class Hmc5883Driver(SensorDriver):
     def _recheck(self) -> None:
         """PX4 re-reads CRA every 128 and CRB every 256 samples and rewrites on mismatch."""
         n = self._samples
-        for period, reg, want in ((128, REG_CRA, CRA_NORMAL), (256, REG_CRB, CRB_RUN)):
+        for period, reg, want in ((128, CRA, CRA_NORMAL), (256, CRB, CRB_RUN)):
             if n % period:
                 continue
             got = self._read(reg, 1)
@@ -247,11 +253,11 @@ class Hmc5883Driver(SensorDriver):
         if self._state == "self_test_pos":
             self._pos = mean  # type: ignore[assignment]
             self._state = "self_test_neg"
-            if not self._write(REG_CRA, CRA_NORMAL | CRA_NEG_BIAS):
+            if not self._write(CRA, CRA_NORMAL | CRA_NEG_BIAS):
                 self._state = "configure"
             self._discard = 1
             return
-        gain = GAIN_LSB_PER_GA[CRB_SELF_TEST >> 5]
+        gain = GAIN_LSB_PER_GA[CRB_SELF_TEST >> CRB_GN_LSB]
         pos = self._pos or (0.0, 0.0, 0.0)
         field = tuple((p - n) / 2.0 / gain for p, n in zip(pos, mean))
         lo, hi = SELF_TEST_LIMITS_GA

@@ -30,8 +30,10 @@ OP_WRSR: Final = 0x01
 OP_READ: Final = 0x03
 OP_WRITE: Final = 0x02
 OP_RDID: Final = 0x9F
+SR_WPEN: Final = 0x80
 SR_WEL: Final = 0x02
 SR_BP_MASK: Final = 0x0C
+SR_BP_SHIFT: Final = 2
 SR_RESERVED: Final = 0x71
 RDID_FILLER: Final = 0xA5           # what NuttX clocks out while reading the ID
 MANUFACTURER_CYPRESS: Final = 0xC2
@@ -163,11 +165,11 @@ class FramMtd:
             raise ValueError(f"{self.name}: block protect must be 0..3, got {bp!r}")
         if not self._ready("set_block_protect"):
             return False
-        value = (bp << 2) | (0x80 if wpen else 0)
+        value = (bp << SR_BP_SHIFT) | (SR_WPEN if wpen else 0)
         self.spi.transfer(bytes((OP_WREN,)))
         self.spi.transfer(bytes((OP_WRSR, value)))
         sr = self.read_status()
-        if sr is None or sr & 0x8C != value:
+        if sr is None or sr & (SR_WPEN | SR_BP_MASK) != value:
             self._fail(f"status write 0x{value:02X} did not stick (reads "
                        f"{'?' if sr is None else f'0x{sr:02X}'}; /WP low with WPEN set?)")
             return False
