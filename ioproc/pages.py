@@ -242,6 +242,21 @@ def _float_to_u16(value: float) -> int:
     return int(value) & 0xFFFF
 
 
+class _PageReg:
+    """One register of a page as an attribute of :class:`IoPages` (the firmware's named
+    registers): reads the live value, stores what a uint16 register keeps."""
+
+    def __init__(self, page: int, offset: int) -> None:
+        self.page = page
+        self.offset = offset
+
+    def __get__(self, pages: IoPages, owner: type | None = None) -> int:
+        return pages.values[self.page][self.offset]
+
+    def __set__(self, pages: IoPages, value: int) -> None:
+        pages.values[self.page][self.offset] = int(value) & 0xFFFF
+
+
 class IoPages:
     """Live register pages of one IO, with the era's write rules (a ``PageStore``)."""
 
@@ -265,29 +280,9 @@ class IoPages:
         spec = self.spec[number]
         return self.values[spec.storage if spec.storage is not None else number]
 
-    @property
-    def status_flags(self) -> int:
-        return self.values[PageNo.STATUS][Status.FLAGS]
-
-    @status_flags.setter
-    def status_flags(self, value: int) -> None:
-        self.values[PageNo.STATUS][Status.FLAGS] = int(value) & 0xFFFF
-
-    @property
-    def alarms(self) -> int:
-        return self.values[PageNo.STATUS][Status.ALARMS]
-
-    @alarms.setter
-    def alarms(self, value: int) -> None:
-        self.values[PageNo.STATUS][Status.ALARMS] = int(value) & 0xFFFF
-
-    @property
-    def arming(self) -> int:
-        return self.values[PageNo.SETUP][Setup.ARMING]
-
-    @arming.setter
-    def arming(self, value: int) -> None:
-        self.values[PageNo.SETUP][Setup.ARMING] = int(value) & 0xFFFF
+    status_flags = _PageReg(PageNo.STATUS, Status.FLAGS)
+    alarms = _PageReg(PageNo.STATUS, Status.ALARMS)
+    arming = _PageReg(PageNo.SETUP, Setup.ARMING)
 
     # -- PageStore -----------------------------------------------------------------------
     def read(self, page: int, offset: int) -> Sequence[int] | None:

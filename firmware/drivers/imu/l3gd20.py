@@ -34,8 +34,8 @@ from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId
 from firmware.drivers.imu.st_spi_driver import (
     STATE_READ,
-    STUCK_SAMPLES,
     RegCheck,
+    RepeatCounter,
     StSpiDriver,
     exact,
 )
@@ -125,8 +125,7 @@ class L3gd20Driver(StSpiDriver):
         self.device_id = DeviceId(BUS_TYPE_SPI, bus, address, DRV_GYR_DEVTYPE_L3GD20).value
         self._pub: Any = None
         self._msg = platform.orb.new("sensor_gyro")
-        self._last_raw: tuple[int, int, int] | None = None
-        self._same = 0
+        self._repeats = RepeatCounter()
         self._drdy_pending = False
         self._drdy_t_us = 0
         self._polling = False
@@ -184,8 +183,7 @@ class L3gd20Driver(StSpiDriver):
 
     def _enter_read(self) -> None:
         self._bad_in_row = 0
-        self._same = 0
-        self._last_raw = None
+        self._repeats.clear()
         self._read_sample(publish=False)  # clears data-ready so the next sample makes an edge
         if self.drdy_pin is not None:
             self._polling = False
@@ -239,17 +237,11 @@ class L3gd20Driver(StSpiDriver):
             self.perf_missed.count()
         raw = _XYZ_LE(d, 2)  # OUT_X_L .. OUT_Z_H: three little-endian int16
         if not publish:
-            self._last_raw = raw
+            self._repeats.last = raw
             return
-        if raw == self._last_raw:
-            self._same += 1
-            if self._same >= STUCK_SAMPLES:
-                self._same = 0
-                self._stuck("data", raw)
-                return
-        else:
-            self._same = 0
-        self._last_raw = raw
+        if self._repeats.seen(raw):
+            self._stuck("data", raw)
+            return
         clip = [1 if v in (32767, -32768) else 0 for v in raw]
         if any(clip):
             for j in range(3):
@@ -260,16 +252,11 @@ class L3gd20Driver(StSpiDriver):
 
     def _publish(self, raw: tuple[int, int, int], clip: list[int], temperature: float,
                  t_sample_us: int, now_us: int) -> None:
-        x, y, z = self._rotate(raw[0] * SCALE_RAD_S, raw[1] * SCALE_RAD_S, raw[2] * SCALE_RAD_S)
         m = self._msg
-        m.timestamp_sample = t_sample_us
-        m.device_id = self.device_id
-        m.x, m.y, m.z = x, y, z
-        m.temperature = temperature
-        m.error_count = self.error_count
+        self._fill(m, self.device_id, (raw[0] * SCALE_RAD_S, raw[1] * SCALE_RAD_S,
+                                       raw[2] * SCALE_RAD_S), temperature, t_sample_us, now_us)
         m.clip_counter = clip
         m.samples = 1
-        m.timestamp = now_us
         self._pub.publish(m)  # type: ignore[union-attr]
         self.published += 1
 

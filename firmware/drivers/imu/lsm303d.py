@@ -34,8 +34,8 @@ from board.spi import SpiHandle
 from firmware.drivers.device import BUS_TYPE_SPI, DeviceId
 from firmware.drivers.imu.st_spi_driver import (
     STATE_READ,
-    STUCK_SAMPLES,
     RegCheck,
+    RepeatCounter,
     StSpiDriver,
     s16,
 )
@@ -145,10 +145,8 @@ class Lsm303dDriver(StSpiDriver):
         self._mag_msg = orb.new("sensor_mag")
         self._next_mag_us = 0
         self._next_check_us = 0
-        self._last_accel: tuple[int, int, int] | None = None
-        self._last_mag: tuple[int, int, int] | None = None
-        self._same_accel = 0
-        self._same_mag = 0
+        self._accel_repeats = RepeatCounter()
+        self._mag_repeats = RepeatCounter()
         self.accel_published = 0
         self.mag_published = 0
 
@@ -175,8 +173,8 @@ class Lsm303dDriver(StSpiDriver):
 
     def _enter_read(self) -> None:
         self._bad_in_row = 0
-        self._last_accel = self._last_mag = None
-        self._same_accel = self._same_mag = 0
+        self._accel_repeats.clear()
+        self._mag_repeats.clear()
         now = self.platform.time_us()
         self._next_mag_us = now + MAG_INTERVAL_US
         self._next_check_us = now + CHECK_INTERVAL_US
@@ -229,15 +227,11 @@ class Lsm303dDriver(StSpiDriver):
         sx = sy = sz = 0
         clip = [0, 0, 0]
         # Samples as (x, y, z) little-endian int16 triples.
+        repeats = self._accel_repeats
         for raw in _iter_xyz_le(d):
-            if raw == self._last_accel:
-                self._same_accel += 1
-                if self._same_accel >= STUCK_SAMPLES:
-                    self._stuck("accel data", raw)
-                    return
-            else:
-                self._same_accel = 0
-            self._last_accel = raw
+            if repeats.seen(raw):
+                self._stuck("accel data", raw)
+                return
             if 32767 in raw or -32768 in raw:
                 for j in range(3):
                     if raw[j] in (32767, -32768):
@@ -250,16 +244,11 @@ class Lsm303dDriver(StSpiDriver):
                 self.clip_total[j] += clip[j]
             self._report("clip", f"accel clipping at full scale: {clip} of {n} samples")
         k = ACCEL_SCALE_M_S2 / n
-        x, y, z = self._rotate(sx * k, sy * k, sz * k)
         m = self._accel_msg
-        m.timestamp_sample = now
-        m.device_id = self.accel_device_id
-        m.x, m.y, m.z = x, y, z
-        m.temperature = self.temperature_c
-        m.error_count = self.error_count
+        self._fill(m, self.accel_device_id, (sx * k, sy * k, sz * k), self.temperature_c,
+                   now, now)
         m.clip_counter = [min(c, 255) for c in clip]
         m.samples = n
-        m.timestamp = now
         self._accel_pub.publish(m)  # type: ignore[union-attr]
         self.accel_published += 1
 
@@ -281,25 +270,15 @@ class Lsm303dDriver(StSpiDriver):
             self.perf_mag_duplicate.count()
             return
         raw = (s16(d[3], d[4]), s16(d[5], d[6]), s16(d[7], d[8]))
-        if raw == self._last_mag:
-            self._same_mag += 1
-            if self._same_mag >= STUCK_SAMPLES:
-                self._stuck("mag data", raw)
-                return
-        else:
-            self._same_mag = 0
-        self._last_mag = raw
+        if self._mag_repeats.seen(raw):
+            self._stuck("mag data", raw)
+            return
         if any(v in (32767, -32768) for v in raw):
             self._report("magclip", f"mag clipping at full scale: raw {raw}")
-        x, y, z = self._rotate(*(v * MAG_SCALE_GAUSS for v in raw))
         m = self._mag_msg
-        m.timestamp_sample = now
-        m.device_id = self.mag_device_id
-        m.x, m.y, m.z = x, y, z
-        m.temperature = temperature
-        m.error_count = self.error_count
+        self._fill(m, self.mag_device_id, (raw[0] * MAG_SCALE_GAUSS, raw[1] * MAG_SCALE_GAUSS,
+                                           raw[2] * MAG_SCALE_GAUSS), temperature, now, now)
         m.is_external = False
-        m.timestamp = now
         self._mag_pub.publish(m)  # type: ignore[union-attr]
         self.mag_published += 1
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Final
+from typing import Any, Final
 
 from mypy_extensions import mypyc_attr
 
@@ -36,8 +36,8 @@ from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT, PerfCounter
 
 __all__ = [
-    "ADDR_INCREMENT", "DIR_READ", "RegCheck", "StSpiDriver", "WHO_AM_I", "exact", "s16",
-    "sensor_to_board",
+    "ADDR_INCREMENT", "DIR_READ", "RegCheck", "RepeatCounter", "StSpiDriver", "WHO_AM_I",
+    "exact", "s16", "sensor_to_board",
 ]
 
 #: Command byte bits: read, and MS (auto-increment the address for every further byte).
@@ -83,6 +83,30 @@ def sensor_to_board(rotation: int | str | Sequence[Sequence[float]] | None,
         raise ValueError(f"{where}: rotation must be a PX4 enum or a 3x3 sensor->board matrix, "
                          f"got {rotation!r}")
     return rows
+
+
+class RepeatCounter:
+    """Frozen data: counts samples equal to the one before; :meth:`seen` is True at the
+    ``STUCK_SAMPLES``-th repeat (and starts counting again)."""
+
+    def __init__(self) -> None:
+        self.last: tuple[int, ...] | None = None
+        self.same = 0
+
+    def clear(self) -> None:
+        self.last = None
+        self.same = 0
+
+    def seen(self, raw: tuple[int, ...]) -> bool:
+        if raw == self.last:
+            self.same += 1
+            if self.same >= STUCK_SAMPLES:
+                self.same = 0
+                return True
+        else:
+            self.same = 0
+        self.last = raw
+        return False
 
 
 @mypyc_attr(allow_interpreted_subclasses=True)
@@ -285,6 +309,17 @@ class StSpiDriver(SensorDriver):
             self._write_reg(addr, (value & ~clear_bits & 0xFF) | set_bits)
 
     # -- data -----------------------------------------------------------------------------------
+
+    def _fill(self, m: Any, device_id: int, xyz: tuple[float, float, float],
+              temperature: float, t_sample_us: int, now_us: int) -> None:
+        """The fields every ``sensor_*`` message of these drivers carries; ``xyz`` in sensor
+        axes (rotated here)."""
+        m.timestamp_sample = t_sample_us
+        m.device_id = device_id
+        m.x, m.y, m.z = self._rotate(xyz[0], xyz[1], xyz[2])
+        m.temperature = temperature
+        m.error_count = self.error_count
+        m.timestamp = now_us
 
     def _rotate(self, x: float, y: float, z: float) -> tuple[float, float, float]:
         """Sensor axes to board axes (the mounting rotation, PX4's ``-R``)."""
