@@ -37,8 +37,6 @@ from peripherals.regs import Field, Reg, RegisterFile
 from peripherals.st_spi import (
     FIFO_BYPASS,
     FIFO_DEPTH,
-    FIFO_FIFO,
-    FIFO_STREAM,
     SampleChannel,
     StSpiTarget,
     check_rotation,
@@ -138,9 +136,6 @@ REGISTERS: Final[list[Reg]] = [
     Reg(0x39, "LOW_ODR", doc="L3GD20H register; storage on the L3GD20 (PX4 writes 0x08)"),
 ]
 
-#: FIFO_CTRL_REG.FM -> channel FIFO mode (Stream-to-FIFO as Stream, Bypass-to-Stream as Bypass:
-#: their switch events come from the unmodelled interrupt generator).
-_FM: Final = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
 
 
 class L3gd20(StSpiTarget):
@@ -245,11 +240,9 @@ class L3gd20(StSpiTarget):
         self._update_fifo()
 
     def _update_fifo(self) -> None:
-        fm = self.regs.get("FIFO_CTRL_REG.FM")
-        if fm not in _FM:
-            self._warn_once("fm", f"reserved FIFO mode FM={fm:03b}: FIFO stays bypassed")
-        mode = _FM.get(fm, FIFO_BYPASS) if self.regs.get("CTRL_REG5.FIFO_EN") else FIFO_BYPASS
-        self.ch.set_fifo_mode(mode)
+        regs = self.regs
+        self._select_fifo_mode(self.ch, regs.get("FIFO_CTRL_REG.FM"),
+                               bool(regs.get("CTRL_REG5.FIFO_EN")))
 
     def _power_on(self) -> None:
         self.ch.clear()

@@ -39,8 +39,6 @@ from peripherals.regs import Field, Reg, RegisterFile
 from peripherals.st_spi import (
     FIFO_BYPASS,
     FIFO_DEPTH,
-    FIFO_FIFO,
-    FIFO_STREAM,
     SampleChannel,
     StSpiTarget,
     check_rotation,
@@ -192,7 +190,6 @@ REGISTERS: Final[list[Reg]] = [
     Reg(0x3E, "Act_THS"), Reg(0x3F, "Act_DUR"),
 ]
 
-_FM: Final = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
 _ZERO_SRC: Final[tuple[str, ...]] = ("INT_SRC_M", "IG_SRC1", "IG_SRC2", "CLICK_SRC")
 
 
@@ -375,11 +372,8 @@ class Lsm303d(StSpiTarget):
 
     def _update_fifo(self) -> None:
         regs = self.regs
-        fm = regs.get("FIFO_CTRL.FM")
-        if fm not in _FM:
-            self._warn_once("fm", f"reserved FIFO mode FM={fm:03b}: FIFO stays bypassed")
-        mode = _FM.get(fm, FIFO_BYPASS) if regs.get("CTRL0.FIFO_EN") else FIFO_BYPASS
-        self.accel.set_fifo_mode(mode)
+        self._select_fifo_mode(self.accel, regs.get("FIFO_CTRL.FM"),
+                               bool(regs.get("CTRL0.FIFO_EN")))
 
     def _power_on(self) -> None:
         self.accel.clear()

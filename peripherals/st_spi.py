@@ -74,6 +74,9 @@ FIFO_DEPTH: Final = 32
 FIFO_BYPASS: Final = 0
 FIFO_FIFO: Final = 1
 FIFO_STREAM: Final = 2
+#: FIFO_CTRL(_REG).FM -> channel FIFO mode, both parts. Stream-to-FIFO runs as Stream and
+#: Bypass-to-Stream as Bypass: their switch events come from the unmodelled interrupt generators.
+FM_MODES: Final = {0: FIFO_BYPASS, 1: FIFO_FIFO, 2: FIFO_STREAM, 3: FIFO_STREAM, 4: FIFO_BYPASS}
 #: STATUS (L3GD20 STATUS_REG, LSM303D STATUS_A/STATUS_M) and FIFO_SRC bits, the same on both
 #: parts (FIFO_SRC bit 7 is WTM on the L3GD20, FTH on the LSM303D).
 STATUS_ZYXOR: Final = 0x80
@@ -501,6 +504,13 @@ class StSpiTarget(SpiTarget):
         if key not in self._warned:
             self._warned.add(key)
             log.warning("%s: %s", self.name, text)
+
+    def _select_fifo_mode(self, ch: SampleChannel, fm: int, enabled: bool) -> None:
+        """The FM field and the FIFO enable bit select ``ch``'s FIFO mode (:data:`FM_MODES`); a
+        reserved FM leaves the FIFO bypassed, logged once."""
+        if fm not in FM_MODES:
+            self._warn_once("fm", f"reserved FIFO mode FM={fm:03b}: FIFO stays bypassed")
+        ch.set_fifo_mode(FM_MODES.get(fm, FIFO_BYPASS) if enabled else FIFO_BYPASS)
 
     def _set_pin(self, pin: Pin, level: int, t_ns: int) -> None:
         if pin.level != level or not pin.driven:
