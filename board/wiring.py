@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Final
 
 __all__ = ["Wire", "WORLD", "uart_link", "PIXHAWK1", "CAN_ESC_WIRES", "CAN_ESC_NODES",
-           "with_can_escs"]
+           "FMU_AUX_WIRES", "with_can_escs", "with_fmu_aux"]
 
 WORLD: Final = "world"
 
@@ -63,3 +63,17 @@ def with_can_escs(wiring: list[Wire]) -> list[Wire]:
     ``pwm1..4`` are unplugged (nothing else drives those motors), ``pwm5..8`` stay."""
     moved = {w.dst for w in CAN_ESC_WIRES}
     return [w for w in wiring if not (w.src[0] == "io" and w.dst in moved)] + CAN_ESC_WIRES
+
+
+#: The FMU's AUX outputs 1..6 (its own timers, PX4's ``fmu`` driver) to the world's servo and
+#: ESC inputs ``aux1..aux6``: a VTOL's surfaces and pusher. Only an airframe whose world model
+#: has AUX channels gets them (:func:`with_fmu_aux`), so the quadrotor's and the plane's
+#: systems, and their traces, stay as they were.
+FMU_AUX_WIRES: Final[list[Wire]] = [
+    Wire(("fmu", f"aux{i}"), (WORLD, f"aux{i}"), f"FMU AUX output {i} -> servo/ESC {i}")
+    for i in range(1, 7)]
+
+
+def with_fmu_aux(wiring: list[Wire], n_aux: int) -> list[Wire]:
+    """``wiring`` plus the first ``n_aux`` FMU AUX wires (the channels the world model uses)."""
+    return wiring + FMU_AUX_WIRES[:max(0, min(n_aux, len(FMU_AUX_WIRES)))]

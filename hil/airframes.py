@@ -41,6 +41,7 @@ HOST: dict[int, HostAirframe] = {
     4001: HostAirframe("f450", aliases=("quad_x",)),
     4011: HostAirframe("f450", aliases=("f450", "quad", "multicopter")),
     2100: HostAirframe("plane", fmu_devices=("ms4525",), aliases=("plane", "fixedwing")),
+    13000: HostAirframe("quadplane", fmu_devices=("ms4525",), aliases=("vtol", "quadplane")),
 }
 
 

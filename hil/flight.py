@@ -25,7 +25,7 @@ from typing import Any
 
 from hil.accuracy import TruthSample, estimator_accuracy
 from hil.airframes import resolve as airframe_info
-from hil.flight_checks import fixed_wing_checks
+from hil.flight_checks import VTOL_STATES, fixed_wing_checks, vtol_checks
 from hil.gcs import GcsClient, GcsTimeout
 from hil.missions import M_PER_DEG_LAT, SQUARE_NE, DefaultMission, mission_for
 from hil.native import active as native_active
@@ -105,7 +105,8 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
     frame = airframe_info(cfg.airframe)
     mission = mission_for(frame.vehicle_class)
     fixed_wing = frame.vehicle_class == "fixedwing"
-    altitude_m = cfg.altitude_m if not fixed_wing else mission.altitude_m
+    vtol = frame.vehicle_class == "vtol"
+    altitude_m = cfg.altitude_m if not (fixed_wing or vtol) else mission.altitude_m
     # Return at the mission's altitude (PX4's default RTL_RETURN_ALT of 60 m would climb).
     params = {"SDLOG_MODE": 0, "EKF2_MAG_DECL": 2.6, "RTL_RETURN_ALT": altitude_m,
               "RTL_DESCEND_ALT": altitude_m, **cfg.params}
@@ -155,7 +156,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         gp = gcs.last.get("GLOBAL_POSITION_INT")
         if gp is not None:
             home = (gp.lat * 1e-7, gp.lon * 1e-7)
-        if fixed_wing:
+        if fixed_wing or vtol:
             items: list[Any] = mission.items(home[0], home[1], gcs.target_system,
                                              gcs.target_component)
         else:  # the tuples the quadrotor's flight has always sent (same bytes, same logs)
@@ -188,6 +189,8 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         t_takeoff = None
         outputs: dict[str, Any] | None = None
         reached: set[int] = set()
+        seq0 = mission.first_waypoint_seq
+        vtol_state = 3          # vtol_vehicle_status: the VTOL starts as a multicopter
         # a plane counts as up near its cruise altitude, a multicopter within 0.5 m of it
         up_m = altitude_m - (5.0 if fixed_wing else 0.5)
         deadline = orch.t_ns + int(cfg.timeout_s * S)
@@ -204,12 +207,19 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
                 phase(f"takeoff: reached {altitude_m:.0f} m",
                       then="mission: flying to waypoint 1")
             for m in gcs.messages("MISSION_ITEM_REACHED", since=max(0, gcs.mark() - 200)):
-                if 1 <= m.seq <= n_wp and m.seq not in reached:
-                    reached.add(m.seq)
-                    phase(f"waypoint {m.seq} reached",
-                          then=(f"mission: flying to waypoint {m.seq + 1}"
-                                if m.seq < n_wp else
+                wp = m.seq - seq0 + 1
+                if 1 <= wp <= n_wp and wp not in reached:
+                    reached.add(wp)
+                    phase(f"waypoint {wp} reached",
+                          then=(f"mission: flying to waypoint {wp + 1}"
+                                if wp < n_wp else
                                 "mission: returning home and landing"))
+            if vtol:   # the VTOL module's state, as its log has it (vtol_vehicle_status)
+                st = orch.call("fmu", "topic", "vtol_vehicle_status")
+                if st and int(st["vehicle_vtol_state"]) != vtol_state:
+                    vtol_state = int(st["vehicle_vtol_state"])
+                    chute = " (quad-chute)" if st["fixed_wing_system_failure"] else ""
+                    phase(f"vtol: {VTOL_STATES.get(vtol_state, vtol_state)}{chute}")
             hb = gcs.last.get("HEARTBEAT")
             armed = bool(hb and hb.base_mode & 128)
             if t_takeoff is not None and not armed:
@@ -222,12 +232,16 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         can1 = orch.call("fmu", "can_stats", "CAN1") if cfg.can_escs else None
         uavcan = orch.call("fmu", "shell", "uavcan status")[1] if cfg.can_escs else None
         trim_m_s = _param_value(orch, "FW_AIRSPD_TRIM") if fixed_wing else None
+        vt_limits = {n: _param_value(orch, n) for n in ("VT_TRANS_TIMEOUT", "VT_B_TRANS_DUR")} \
+            if vtol else {}
     wall = time.perf_counter() - wall0
     summary = _summary(cfg, mission, altitude_m, rec.rows, phases, reached, home, rtf, wall)
     summary["airframe"] = frame.as_json()
     summary["mission_altitude_m"] = altitude_m
     if fixed_wing:
         summary.update(fixed_wing_checks(mission, rec.rows, phases, world.airframe, trim_m_s))
+    if vtol:
+        summary.update(vtol_checks(mission, rec.rows, phases, world.airframe, vt_limits))
     summary["cpus"] = cpus
     if cfg.can_escs:
         summary["can1"] = can1                   # CAN1 and its ESC nodes' counters at the end
@@ -365,6 +379,13 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
               f"{summary['cruise_max_airspeed_error_m_s']}); highest angle of attack "
               f"{summary['max_aoa_deg']} deg (stall {summary['stall_aoa_deg']}); touched down "
               f"{summary['touchdown_distance_m']} m from the landing point")
+    if "front_transition_s" in summary:
+        print(f"  VTOL: front transition {summary['front_transition_s']} s (VT_TRANS_TIMEOUT "
+              f"{summary['front_transition_limit_s']} s), back transition "
+              f"{summary['back_transition_s']} s; quad-chute: {summary['quad_chute']}; "
+              f"waypoints passed within {summary['waypoint_miss_m']} m; highest angle of "
+              f"attack on the wing {summary['max_aoa_deg']} deg (stall "
+              f"{summary['stall_aoa_deg']})")
     print(f"  estimator vs truth (its own log): attitude rms {summary['attitude_error_rms_deg']}"
           f" deg, tilt max {summary['tilt_error_max_deg']} deg, position rms "
           f"{summary['position_error_rms_m']} m, max {summary['position_error_max_m']} m")

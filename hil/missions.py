@@ -8,7 +8,11 @@ the airframe's class (``hil.airframes``) and checks what a PX4 user looks at aga
 * multicopter: takeoff to 10 m, a square of four waypoints 20 m apart, return and land;
 * fixedwing: a runway takeoff northwards climbing to 50 m, a square of four waypoints 300 m
   apart, a loiter at 30 m south of home where the landing pattern starts, then a landing
-  northwards at home (30 m over 400 m, within PX4's 5 degree glide slope).
+  northwards at home (30 m over 400 m, within PX4's 5 degree glide slope);
+* vtol: a vertical takeoff to 30 m as a multicopter, the front transition (DO_VTOL_TRANSITION
+  to fixed wing, northwards: the heading it took off with), the plane's square at 30 m, the
+  back transition after its last waypoint, and a vertical landing at home (NAV_LAND, flown as
+  a multicopter: to home at the altitude it has, then down).
 """
 
 from __future__ import annotations
@@ -27,6 +31,10 @@ NAV_LOITER_TIME = mav.MAV_CMD_NAV_LOITER_TIME
 NAV_RTL = mav.MAV_CMD_NAV_RETURN_TO_LAUNCH
 NAV_LAND = mav.MAV_CMD_NAV_LAND
 NAV_TAKEOFF = mav.MAV_CMD_NAV_TAKEOFF
+DO_VTOL_TRANSITION = mav.MAV_CMD_DO_VTOL_TRANSITION
+#: DO_VTOL_TRANSITION param1: MAV_VTOL_STATE_MC / _FW
+VTOL_MC = float(mav.MAV_VTOL_STATE_MC)
+VTOL_FW = float(mav.MAV_VTOL_STATE_FW)
 
 
 @dataclass(frozen=True)
@@ -37,7 +45,8 @@ class Item:
     north_m: float
     east_m: float
     alt_m: float
-    param1: float = 0.0  # NAV_TAKEOFF: minimum pitch; NAV_LOITER_TIME: seconds
+    param1: float = 0.0  # NAV_TAKEOFF: minimum pitch; NAV_LOITER_TIME: seconds;
+    #                      DO_VTOL_TRANSITION: the state to go to (VTOL_MC, VTOL_FW)
     param3: float = 0.0  # NAV_LOITER_TIME: radius (m, 0: NAV_LOITER_RAD)
 
 
@@ -46,10 +55,12 @@ class DefaultMission:
     name: str
     altitude_m: float                           # cruise altitude above home
     plan: tuple[Item, ...]
-    #: the checked turn points, metres north/east; their items are sequence 1..len
+    #: the checked turn points, metres north/east; their items are sequence
+    #: first_waypoint_seq .. first_waypoint_seq + len - 1
     waypoints: tuple[tuple[float, float], ...]
     touchdown_ne: tuple[float, float] = (0.0, 0.0)
     description: str = ""
+    first_waypoint_seq: int = 1
 
     def items(self, home_lat_deg: float, home_lon_deg: float, target_system: int = 1,
               target_component: int = 1) -> list[mav.MAVLink_mission_item_int_message]:
@@ -75,6 +86,8 @@ FW_ALT_M = 50.0
 #: the loiter that starts the landing pattern, on the runway line south of home
 FW_LOITER_NE = (-400.0, 0.0)
 FW_PATTERN_ALT_M = 30.0
+#: the VTOL's altitude: takeoff, transitions and the square
+VTOL_ALT_M = 30.0
 
 MISSIONS: dict[str, DefaultMission] = {
     "multicopter": DefaultMission(
@@ -92,6 +105,17 @@ MISSIONS: dict[str, DefaultMission] = {
          Item(NAV_LAND, 0.0, 0.0, 0.0)),
         FW_SQUARE_NE,
         description="takeoff to 50 m, 4 waypoints 300 m apart, loiter, return and land"),
+    "vtol": DefaultMission(
+        "VTOL circuit", VTOL_ALT_M,
+        (Item(NAV_TAKEOFF, 0.0, 0.0, VTOL_ALT_M),
+         Item(DO_VTOL_TRANSITION, 0.0, 0.0, 0.0, param1=VTOL_FW),
+         *(Item(NAV_WAYPOINT, n, e, VTOL_ALT_M) for n, e in FW_SQUARE_NE),
+         Item(DO_VTOL_TRANSITION, 0.0, 0.0, 0.0, param1=VTOL_MC),
+         Item(NAV_LAND, 0.0, 0.0, 0.0)),
+        FW_SQUARE_NE,
+        description="vertical takeoff to 30 m, transition, 4 waypoints 300 m apart, back "
+                    "transition, vertical landing at home",
+        first_waypoint_seq=2),
 }
 
 

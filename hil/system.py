@@ -17,12 +17,21 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from board.wiring import CAN_ESC_NODES, PIXHAWK1, WORLD, Wire, uart_link, with_can_escs
+from board.wiring import (
+    CAN_ESC_NODES,
+    PIXHAWK1,
+    WORLD,
+    Wire,
+    uart_link,
+    with_can_escs,
+    with_fmu_aux,
+)
 from hil.airframes import HOST
 from hil.devices import DeviceHub
 from hil.orchestrator import BoardSpec, Orchestrator
 from hil.rc import RcRig, Transmitter
 from hil.safety_switch import SafetySwitch
+from hil.world.fdm import AIRFRAMES, N_MAIN
 from hil.worldlink import WorldPorts
 
 __all__ = ["CAN_ESC_PARAMS", "DEFAULT_AIRFRAME", "DEFAULT_QUANTUM_NS", "SystemConfig",
@@ -128,6 +137,12 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
                           if not (w.src[0] == WORLD and w.src[1].startswith("rc_"))]
     if cfg.can_escs:
         wiring = with_can_escs(wiring)
+    # the FMU's AUX outputs to the channels the world model has there (a VTOL's surfaces)
+    model = AIRFRAMES[host.world_model if host is not None else "f450"]
+    aux_used = [ch - N_MAIN for ch, o in enumerate(model.outputs)
+                if ch >= N_MAIN and o is not None]
+    if aux_used:
+        wiring = with_fmu_aux(wiring, max(aux_used) + 1)
     if cfg.rc is not None:
         if cfg.rc not in rc_port:
             raise ValueError(f"RC receiver must be one of {sorted(rc_port)}, got {cfg.rc!r}")

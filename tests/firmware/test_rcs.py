@@ -101,7 +101,10 @@ def test_rcs_quad_x_starts_mc_apps_and_reports_missing_modules(platform, sd):
         (romfs.ROMFS_ROOT / "init.d/rc.mc_apps").read_text().splitlines(), 1)
         if line.startswith("navigator start"))
     assert f"/etc/init.d/rc.mc_apps:{lineno}: navigator: not available in this build" in text
-    assert "/etc/init.d/rcS:33: param load: no parameter storage" in text
+    load_line = next(i for i, line in enumerate(
+        (romfs.ROMFS_ROOT / "init.d/rcS").read_text().splitlines(), 1)
+        if line.startswith("if param load"))
+    assert f"/etc/init.d/rcS:{load_line}: param load: no parameter storage" in text
     assert "[init] startup done" in text
 
 
@@ -187,12 +190,16 @@ def test_every_airframe_file_is_selectable():
     frames = romfs.airframes()
     assert {a: f.name for a, f in frames.items()} == {2100: "Standard Plane",
                                                      4001: "Generic Quadcopter X",
-                                                     4011: "DJI Flame Wheel F450"}
+                                                     4011: "DJI Flame Wheel F450",
+                                                     13000: "Generic Standard VTOL"}
     autostart = (romfs.ROMFS_ROOT / "init.d" / "rc.autostart").read_text()
     for num, frame in frames.items():
         assert f"param compare SYS_AUTOSTART {num}" in autostart
         assert frame.file.rsplit("/", 1)[1] in autostart
-    assert {f.type for f in frames.values()} == {"Quadrotor x", "Standard Plane"}
+    assert {f.type for f in frames.values()} == {"Quadrotor x", "Standard Plane",
+                                                 "Standard VTOL"}
+    assert frames[13000].cls == "VTOL" and frames[13000].outputs[4:] == (
+        ("AUX1", "aileron"), ("AUX2", "elevator"), ("AUX3", "throttle"), ("AUX4", "rudder"))
     assert frames[2100].cls == "Plane" and frames[4011].cls == "Copter"
     assert frames[2100].outputs == (("MAIN1", "aileron"), ("MAIN2", "elevator"),
                                     ("MAIN3", "throttle"), ("MAIN4", "rudder"))

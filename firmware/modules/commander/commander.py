@@ -29,6 +29,7 @@ from firmware.modules.commander.vehicle_type import (
     MAV_TYPE_QUADROTOR,
     VEHICLE_TYPE_FIXED_WING,
     classify,
+    vtol_type,
 )
 from firmware.platform.module import WorkItemModule
 
@@ -101,6 +102,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self.failure_detector = FailureDetector(self)
         self.mav_type = MAV_TYPE_QUADROTOR
         self.vehicle_type, self.is_vtol = classify(self.mav_type)
+        self.in_transition = False
+        self.quad_chute = False
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -112,6 +115,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         self._sub_result = self.subscribe("mission_result")
         self._sub_mission = self.subscribe("mission")
         self._sub_param = self.subscribe("parameter_update")
+        self._sub_vtol = self.subscribe("vtol_vehicle_status")
         self.esc_check = EscCheck(self)
         self._pub_status = self.advertise("vehicle_status")
         self._pub_mode = self.advertise("vehicle_control_mode")
@@ -145,6 +149,9 @@ class CommanderModule(CommandHandler, WorkItemModule):
         mav_type = params.get("MAV_TYPE", MAV_TYPE_QUADROTOR) if params is not None else None
         self.mav_type = int(mav_type) if mav_type is not None else MAV_TYPE_QUADROTOR
         self.vehicle_type, self.is_vtol = classify(self.mav_type)
+        self._update_flags()
+
+    def _update_flags(self) -> None:
         fixed_wing = self.vehicle_type == VEHICLE_TYPE_FIXED_WING
         self._flags = {nav: modes.control_flags(nav, fixed_wing=fixed_wing)
                        for nav in modes.NAV_NAMES}
@@ -162,6 +169,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
             self._load_params()
         self._loop += 1
         self._update_links(now)
+        self._update_vtol()
         while True:
             cmd = self._sub_cmd.update()
             if cmd is None:
@@ -209,6 +217,18 @@ class CommanderModule(CommandHandler, WorkItemModule):
                 "Connection to ground station lost" if dl_lost else
                 "Data link regained")
             self.dl_lost = dl_lost
+
+    def _update_vtol(self) -> None:
+        """A VTOL's type and transition from vtol_att_control (PX4: vtol_vehicle_status);
+        its quad-chute (fixed_wing_system_failure) is a failsafe cause with Return."""
+        m = self._sub_vtol.update()
+        if m is None or not self.is_vtol:
+            return
+        vtype, self.in_transition = vtol_type(int(m.vehicle_vtol_state))
+        if vtype != self.vehicle_type:
+            self.vehicle_type = vtype
+            self._update_flags()
+        self.quad_chute = bool(m.fixed_wing_system_failure)
 
     def _update_battery(self) -> None:
         bat = self.data.battery.node.last
@@ -345,6 +365,8 @@ class CommanderModule(CommandHandler, WorkItemModule):
             self.error(f"Failsafe: no connection to ground station, "
                        f"{fs.ACTION_NAMES_LOWER[f.causes['datalink'].action]}")
         self.geofence.update(now, in_air)
+        if f.update("quad_chute", self.quad_chute, fs.A_RTL, now, in_air):
+            self.error("Failsafe: VTOL quad-chute, return")
         level = self.battery_warning
         if f.update("battery", level >= 2, fs.battery_action(int(p["COM_LOW_BAT_ACT"]), level),
                     now, in_air, level):
@@ -448,7 +470,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
                self.failsafe_active,
                self.failsafe_action, self.rc_lost, self.dl_lost, ready, bat, self.kill_engaged,
                self.have_taken_off, self.failure_detector.status, self.failure_detector.lockdown,
-               self.mav_type)
+               self.mav_type, self.vehicle_type, self.in_transition)
         if sig == self._last_sig and now - self._last_pub_us < PUBLISH_INTERVAL_US:
             return
         self._last_sig, self._last_pub_us = sig, now
@@ -464,6 +486,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
         s.nav_state_user_intention = self.user_nav
         s.vehicle_type = self.vehicle_type
         s.is_vtol = self.is_vtol
+        s.in_transition_mode = self.in_transition
         s.system_type = self.mav_type
         s.system_id = self.sys_id
         s.component_id = 1

@@ -123,7 +123,7 @@ class Failsafe:
     """The latched causes and the resulting reaction."""
 
     def __init__(self) -> None:
-        self.causes = {n: _Cause(n) for n in ("rc", "datalink", "battery")}
+        self.causes = {n: _Cause(n) for n in ("rc", "datalink", "battery", "quad_chute")}
         self.user_took_over = False
 
     def update(self, name: str, condition: bool, action: int, now_us: int,

@@ -7,8 +7,10 @@ is_rotary_wing / is_fixed_wing / is_vtol). Everything downstream that behaves di
 a plane (control mode flags, the navigator's acceptance radii, the IO's manual override)
 reads ``vehicle_type``, never the parameter, so one airframe setting drives them all.
 
-A VTOL starts as a rotary wing (it takes off as a multicopter); the VTOL attitude module will
-switch ``vehicle_type`` once it flies as a plane (not built yet).
+A VTOL starts as a rotary wing (it takes off as a multicopter); :func:`vtol_type` follows
+``vtol_vehicle_status`` from vtol_att_control: FIXED_WING once the front transition is over,
+ROTARY_WING again from the start of the back transition (so the multicopter position
+controller takes over while the rotors spin up), ``in_transition_mode`` in either transition.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 from typing import Final
 
 __all__ = ["MAV_TYPE_FIXED_WING", "MAV_TYPE_QUADROTOR", "VEHICLE_TYPE_FIXED_WING",
-           "VEHICLE_TYPE_ROTARY_WING", "VEHICLE_TYPE_UNKNOWN", "classify"]
+           "VEHICLE_TYPE_ROTARY_WING", "VEHICLE_TYPE_UNKNOWN", "classify", "vtol_type"]
 
 # MAVLink MAV_TYPE values (common.xml)
 MAV_TYPE_FIXED_WING: Final = 1
@@ -48,3 +50,18 @@ def classify(mav_type: int) -> tuple[int, bool]:
     if t == MAV_TYPE_FIXED_WING:
         return VEHICLE_TYPE_FIXED_WING, False
     return VEHICLE_TYPE_UNKNOWN, False
+
+
+# vtol_vehicle_status.VEHICLE_VTOL_STATE_*
+_VTOL_TRANSITION_TO_FW: Final = 1
+_VTOL_TRANSITION_TO_MC: Final = 2
+_VTOL_FW: Final = 4
+
+
+def vtol_type(vtol_state: int) -> tuple[int, bool]:
+    """``(vehicle_type, in_transition_mode)`` of a VTOL in ``vtol_state``: a plane only in
+    fixed-wing flight; both transitions are flown by the multicopter position controller."""
+    if vtol_state == _VTOL_FW:
+        return VEHICLE_TYPE_FIXED_WING, False
+    return VEHICLE_TYPE_ROTARY_WING, vtol_state in (_VTOL_TRANSITION_TO_FW,
+                                                    _VTOL_TRANSITION_TO_MC)

@@ -22,8 +22,11 @@ What it does depends on ``vehicle_control_mode``, as PX4:
 The laws are in :mod:`.ecl` (attitude to Euler rates, coordinated turn, body rates with airspeed
 scaling). Airspeed comes from the ``airspeed`` topic while it is valid, else ``FW_AIRSPD_TRIM``
 (:class:`~.airspeed_input.AirspeedInput`). Integrators are frozen on the ground and while
-disarmed, and reset on landing. A VTOL (``vehicle_status.is_vtol``) is flown by this module only
-in fixed-wing mode; a plain plane always.
+disarmed, and reset on landing. A VTOL (``vehicle_status.is_vtol``) is flown by this module in
+fixed-wing mode and in both transitions (the surfaces' share, which vtol_att_control weighs in);
+its controls go to ``actuator_controls_virtual_fw`` instead of group 0 (PX4's way), and its rate
+setpoints are published only in fixed-wing flight (in a transition the multicopter's are the
+rate loop's). A plain plane is always flown here.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ from firmware.modules.fw_att_control.params import ATT_PARAMS, SHARED_PARAMS
 from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
+from firmware.platform.uorb import Publication
 
 if TYPE_CHECKING:
     from firmware.system import System
@@ -96,6 +100,9 @@ class FwAttControlModule(WorkItemModule):
         self.armed = False
         self.landed = True
         self.fixed_wing = True
+        self.vtol = False
+        self.vtol_fw = False
+        self.pub_virtual: Publication | None = None
         self.last_att_us = 0
         self.have_sp = False
         self.roll_sp = 0.0
@@ -182,8 +189,11 @@ class FwAttControlModule(WorkItemModule):
                 self.mode = MODE_NONE
         m = self.sub_status.update()
         if m is not None:
-            self.fixed_wing = (not m.is_vtol
+            self.fixed_wing = (not m.is_vtol or m.in_transition_mode
                                or m.vehicle_type == m.VEHICLE_TYPE_FIXED_WING)
+            self.vtol = bool(m.is_vtol)
+            self.vtol_fw = self.vtol and not m.in_transition_mode and \
+                m.vehicle_type == m.VEHICLE_TYPE_FIXED_WING
         m = self.sub_land.update()
         if m is not None:
             landed = bool(m.landed)
@@ -245,7 +255,12 @@ class FwAttControlModule(WorkItemModule):
         c[0], c[1], c[2] = _clamp(r + tr, -1.0, 1.0), _clamp(p + tp, -1.0, 1.0), \
             _clamp(y + ty, -1.0, 1.0)
         c[3] = t if self.armed else 0.0
-        self.pub_ctl.publish(m)
+        if self.vtol:
+            if self.pub_virtual is None:
+                self.pub_virtual = self.advertise("actuator_controls_virtual_fw")
+            self.pub_virtual.publish(m)
+        else:
+            self.pub_ctl.publish(m)
         self.perf_loop.count()
 
     def run(self) -> None:
@@ -312,7 +327,8 @@ class FwAttControlModule(WorkItemModule):
         m.timestamp = now
         m.roll, m.pitch, m.yaw = p_sp, q_sp, r_sp
         m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = self.throttle_sp, 0.0, 0.0
-        self.pub_rates.publish(m)
+        if not self.vtol or self.vtol_fw:
+            self.pub_rates.publish(m)
 
     def _acro(self, scaler: float, dt: float, t_sample: int) -> None:
         """Acro: the sticks are body rate setpoints (FW_ACRO_*_MAX at full stick)."""

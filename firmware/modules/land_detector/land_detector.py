@@ -1,7 +1,9 @@
-"""Land detector: ``land_detector start multicopter|fixedwing`` (PX4's module and types).
+"""Land detector: ``land_detector start multicopter|fixedwing|vtol`` (PX4's module and types).
 
 Fixed wing: see :mod:`firmware.modules.land_detector.fixedwing`. Multicopter (the default when
-no type is given): ground contact -> maybe landed -> landed, with hysteresis.
+no type is given): ground contact -> maybe landed -> landed, with hysteresis. VTOL (PX4's
+VtolLandDetector): the multicopter's, except that a VTOL flying as a plane or in a transition
+(``vehicle_status``) is never landed: its rotors' thrust is low there by design.
 
 A multicopter has no weight-on-wheels switch, so landing is inferred from what the controllers
 and the estimator see (PX4's multicopter logic, restated):
@@ -35,8 +37,8 @@ if TYPE_CHECKING:
 
 __all__ = ["KINDS", "PARAMS", "Hysteresis", "LandDetectorModule"]
 
-#: the vehicle types ``land_detector start`` takes (PX4's; vtol, rover, airship not built)
-KINDS = ("multicopter", "fixedwing")
+#: the vehicle types ``land_detector start`` takes (PX4's; rover, airship not built)
+KINDS = ("multicopter", "fixedwing", "vtol")
 
 _G = "Land Detector"
 G = 9.80665
@@ -96,8 +98,9 @@ class LandDetectorModule(WorkItemModule):
     """``land_detector``: publishes vehicle_land_detected at 50 Hz (on change, else at 1 Hz)."""
 
     NAME = "land_detector"
-    DESCRIPTION = "land detector (multicopter, fixedwing)"
-    USAGE = ("start [multicopter|fixedwing]   the vehicle type's detector (default multicopter)",)
+    DESCRIPTION = "land detector (multicopter, fixedwing, vtol)"
+    USAGE = ("start [multicopter|fixedwing|vtol]   the vehicle type's detector "
+             "(default multicopter)",)
     WQ = "wq:nav_and_controllers"
     INTERVAL_US = 20_000
     #: STM32F427: a handful of comparisons and three topic copies, ~40 us
@@ -141,6 +144,7 @@ class LandDetectorModule(WorkItemModule):
         self.sub_mode = self.subscribe("vehicle_control_mode")
         self.sub_hte = self.subscribe("hover_thrust_estimate")
         self.sub_param = self.subscribe("parameter_update")
+        self.sub_status = self.subscribe("vehicle_status") if self.kind == "vtol" else None
         if self.fw is not None:
             self.sub_accel = self.subscribe("vehicle_acceleration")
             # the airspeed module's topic (absent from a build without it: no airspeed check)
@@ -231,6 +235,11 @@ class LandDetectorModule(WorkItemModule):
         falling = fx * fx + fy * fy + fz * fz < self.ffall_thr * self.ffall_thr
 
         gc = not horizontal and (hit_ground or (low_thrust and not vertical))
+        if self.sub_status is not None:     # a VTOL on the wing or in transition: flying
+            st = self.sub_status.copy()
+            if st is not None and (st.in_transition_mode
+                                   or st.vehicle_type == st.VEHICLE_TYPE_FIXED_WING):
+                gc = False
         self.ground_contact.update(gc, now)
         ml = self.ground_contact.state and low_thrust and not rotational and close
         self.maybe_landed.update(ml, now)

@@ -44,17 +44,19 @@ __all__ = ["SUPPORTED_NAV_CMDS", "MissionService", "check_item", "position_deg"]
 
 RETRY_US: Final = 500_000
 MAX_RETRIES: Final = 5
-SUPPORTED_NAV_CMDS: Final = frozenset({16, 17, 19, 20, 21, 22, 178})
+SUPPORTED_NAV_CMDS: Final = frozenset({16, 17, 19, 20, 21, 22, 178, 3000})
 _REL_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 _ABS_FRAMES: Final = frozenset({mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT})
-_NO_POS_CMDS: Final = frozenset({20, 178})  # RTL and DO_CHANGE_SPEED carry no position
+#: RTL, DO_CHANGE_SPEED and DO_VTOL_TRANSITION carry no position
+_NO_POS_CMDS: Final = frozenset({20, 178, 3000})
 _GLOBAL_FRAMES: Final = _REL_FRAMES | _ABS_FRAMES
 #: the parameters (1..4) each command uses; NaN in them is MAVLink's "default/unchanged"
 #: (yaw: keep the heading mode; hold time: none; radii: NAV_ACC_RAD / the default; speed: no
 #: change), infinity is never meaningful (the emulator's check). Unused parameters are
 #: ignored.
 _USED_PARAMS: Final[dict[int, tuple[int, ...]]] = {
-    16: (1, 2, 4), 17: (3, 4), 19: (1, 3), 20: (), 21: (4,), 22: (4,), 178: (2,)}
+    16: (1, 2, 4), 17: (3, 4), 19: (1, 3), 20: (), 21: (4,), 22: (4,), 178: (2,),
+    3000: (1,)}
 _INVALID_PARAM: Final = (mav.MAV_MISSION_INVALID_PARAM1, mav.MAV_MISSION_INVALID_PARAM2,
                          mav.MAV_MISSION_INVALID_PARAM3, mav.MAV_MISSION_INVALID_PARAM4)
 INT32_MAX: Final = 0x7FFFFFFF
@@ -305,6 +307,8 @@ class MissionService:
             item.yaw = yaw
         elif cmd == 178:  # DO_CHANGE_SPEED: param2 speed (m/s), -1 or NaN: no change
             item.speed_m_s = p2 if math.isfinite(p2) and p2 > 0 else -1.0
+        elif cmd == 3000:  # DO_VTOL_TRANSITION: param1 the state, in PX4's params[0]
+            item.time_inside = p1 if math.isfinite(p1) else 0.0
         return mav.MAV_MISSION_ACCEPTED, item
 
     # -- download -----------------------------------------------------------------------------
@@ -360,6 +364,8 @@ class MissionService:
             p3 = it.loiter_radius
         elif cmd == 178:
             p1, p2, p3 = 1.0, it.speed_m_s, -1.0  # ground speed, m/s, throttle unchanged
+        elif cmd == 3000:
+            p1 = it.time_inside
         frame = (mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT if as_int else
                  mav.MAV_FRAME_GLOBAL_RELATIVE_ALT) if it.altitude_is_relative else \
             (mav.MAV_FRAME_GLOBAL_INT if as_int else mav.MAV_FRAME_GLOBAL)

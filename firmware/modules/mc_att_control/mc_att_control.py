@@ -168,6 +168,8 @@ class McAttControlModule(WorkItemModule):
         self.sub_armed = self.subscribe("actuator_armed")
         self.sub_hover = self.subscribe("hover_thrust_estimate")
         self.sub_param = self.subscribe("parameter_update")
+        self.sub_status = self.subscribe("vehicle_status")
+        self.vtol_fw = False   # a VTOL flying as a plane: fw_att_control's turn
         self.manual = orb.new("manual_control_setpoint")
         params = self.system.params
         hover = params.get("MPC_THR_HOVER", 0.5) if params is not None else 0.5
@@ -232,6 +234,10 @@ class McAttControlModule(WorkItemModule):
         if self.sub_param.updated():
             self.sub_param.update()
             self._load_params()
+        m = self.sub_status.update()
+        if m is not None:
+            self.vtol_fw = bool(m.is_vtol and not m.in_transition_mode
+                                and m.vehicle_type == m.VEHICLE_TYPE_FIXED_WING)
         if not self.stabilized:
             sp = self.sub_att_sp.update()
             if sp is not None:
@@ -304,8 +310,10 @@ class McAttControlModule(WorkItemModule):
         self.last_att_us = t
         if dt <= 0.0 or dt > 0.1:
             dt = 0.004
-        if not self.attitude_enabled:
-            return  # rates only (offboard body rates): the rate setpoint is someone else's
+        if not self.attitude_enabled or self.vtol_fw:
+            # rates only (offboard body rates), or a VTOL in fixed-wing flight: the rate
+            # setpoint is someone else's
+            return
         if self.stabilized:
             self._stabilized_setpoint(q, dt)
         if not self.have_sp:

@@ -14,6 +14,9 @@ armed. Each cycle:
    setpoint (``vehicle_attitude_setpoint``) and for logs (``vehicle_local_position_setpoint``);
 4. the hover thrust estimator learns the hover throttle in flight (``hover_thrust_estimate``) and
    the controller uses it.
+
+A VTOL (``vehicle_status.is_vtol``) is flown here in multicopter flight and in both
+transitions (then by :class:`TaskTransition`: altitude, level, heading), not as a plane.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from firmware.modules.mc_pos_control.position_control import (
     PositionControl,
     attitude_from_thrust,
 )
+from firmware.modules.mc_pos_control.transition_task import TaskTransition
 from firmware.platform.module import WorkItemModule
 
 if TYPE_CHECKING:
@@ -84,6 +88,8 @@ class McPosControlModule(WorkItemModule):
         self.last_us = 0
         self.active = False
         self.thr_max_land = 1.0
+        self.vtol_fw = False         # a VTOL flying as a plane: fw_pos_control_l1's turn
+        self.in_transition = False   # a VTOL between the two
 
     # -- life cycle ----------------------------------------------------------------------------
 
@@ -98,6 +104,7 @@ class McPosControlModule(WorkItemModule):
         self.sub_man = self.subscribe("manual_control_setpoint")
         self.sub_land = self.subscribe("vehicle_land_detected")
         self.sub_param = self.subscribe("parameter_update")
+        self.sub_status = self.subscribe("vehicle_status")
         # Offboard: the MAVLink receiver's setpoints (this module publishes none meanwhile)
         self.sub_traj = self.subscribe("trajectory_setpoint")
         self.pub_traj = self.advertise("trajectory_setpoint")
@@ -110,7 +117,8 @@ class McPosControlModule(WorkItemModule):
         self.hte_msg = orb.new("hover_thrust_estimate")
         self.manual = orb.new("manual_control_setpoint")
         self.tasks = {"auto": TaskAuto(self), "position": TaskManualPosition(self),
-                      "altitude": TaskManualAltitude(self), "offboard": TaskOffboard(self)}
+                      "altitude": TaskManualAltitude(self), "offboard": TaskOffboard(self),
+                      "transition": TaskTransition(self)}
         self._load_params()
         self.hte.reset(self.prm["MPC_THR_HOVER"])
 
@@ -171,6 +179,10 @@ class McPosControlModule(WorkItemModule):
         if self.sub_param.updated():
             self.sub_param.update()
             self._load_params()
+        m = self.sub_status.update()
+        if m is not None:
+            self.vtol_fw = bool(m.is_vtol) and m.vehicle_type == m.VEHICLE_TYPE_FIXED_WING
+            self.in_transition = bool(m.is_vtol and m.in_transition_mode)
 
     def _select_task(self) -> _Task | None:
         m = self.mode
@@ -179,8 +191,10 @@ class McPosControlModule(WorkItemModule):
             # asks for position, velocity or acceleration control
             return self.tasks["offboard"] if m.flag_multicopter_position_control_enabled \
                 else None
-        if m is None or not m.flag_control_climb_rate_enabled:
+        if m is None or not m.flag_control_climb_rate_enabled or self.vtol_fw:
             return None
+        if self.in_transition:
+            return self.tasks["transition"]
         if m.flag_control_auto_enabled:
             return self.tasks["auto"]
         if m.flag_control_position_enabled and self.lpos.xy_valid:

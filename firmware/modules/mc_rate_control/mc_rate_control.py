@@ -18,6 +18,11 @@ limits, anti-windup); this module is the uORB glue around it:
 Rate setpoints come from ``vehicle_rates_setpoint`` (the attitude controller), or in acro mode
 from the sticks (``MC_ACRO_*_MAX``). Output: ``actuator_controls_0`` (roll, pitch, yaw in
 [-1, 1], throttle in [0, 1] = the magnitude of the body z thrust).
+
+A VTOL (``vehicle_status.is_vtol``) publishes the same controls as
+``actuator_controls_virtual_mc`` instead, which vtol_att_control weighs into group 0 (PX4's
+way); it keeps publishing in fixed-wing flight, where vtol_att_control runs on them, but with
+zero controls and its integrators reset (the rotors are off, nothing must wind up).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from firmware.lib.rate_control import RateControl
 from firmware.lib.vector3 import Vector3
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
+from firmware.platform.uorb import Publication
 
 if TYPE_CHECKING:
     from firmware.system import System
@@ -102,6 +108,8 @@ class McRateControlModule(WorkItemModule):
         self.landed = True
         self.acro = False
         self.saturated = False
+        self.vtol = False
+        self.vtol_fw = False
 
     # -- life cycle --------------------------------------------------------------------------
 
@@ -118,6 +126,8 @@ class McRateControlModule(WorkItemModule):
         self.sub_mode = self.subscribe("vehicle_control_mode")
         self.sub_manual = self.subscribe("manual_control_setpoint")
         self.sub_param = self.subscribe("parameter_update")
+        self.sub_status = self.subscribe("vehicle_status")
+        self.pub_virtual: Publication | None = None   # advertised when the vehicle is a VTOL
         self.perf_loop = self.perf_alloc("count", "cycles")
         self._load_params()
 
@@ -159,6 +169,11 @@ class McRateControlModule(WorkItemModule):
         if self.sub_param.updated():
             self.sub_param.update()
             self._load_params()
+        m = self.sub_status.update()
+        if m is not None:
+            self.vtol = bool(m.is_vtol)
+            self.vtol_fw = self.vtol and not m.in_transition_mode and \
+                m.vehicle_type == m.VEHICLE_TYPE_FIXED_WING
         if self.acro:
             ms = self.sub_manual.update()
             if ms is not None:
@@ -220,7 +235,11 @@ class McRateControlModule(WorkItemModule):
         rc = self.rate_control
         u = rc.torque(rate, self.rates_sp, accel).constrain(-1.0, 1.0)
         thr = self.thrust
-        if self.armed and not self.landed:
+        if self.vtol_fw:
+            u = Vector3()
+            thr = 0.0
+            rc.reset_integral()
+        elif self.armed and not self.landed:
             self._predict_saturation(u, thr)
             rc.update_integral(dt)
         else:
@@ -237,7 +256,12 @@ class McRateControlModule(WorkItemModule):
             c[3] = thr
         else:
             c[0] = c[1] = c[2] = c[3] = 0.0
-        self.pub.publish(m)
+        if self.vtol:
+            if self.pub_virtual is None:
+                self.pub_virtual = self.advertise("actuator_controls_virtual_mc")
+            self.pub_virtual.publish(m)
+        else:
+            self.pub.publish(m)
         self.perf_loop.count()
 
     def status_lines(self) -> list[str]:

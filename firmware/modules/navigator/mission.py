@@ -12,6 +12,10 @@ time (``time_inside``) once reached, then the next item if ``autocontinue``. As 
 * after the last item the vehicle holds at it; the next activation after a finished mission
   starts again from item 0;
 * yaw: the item's yaw if set, else heading towards the item.
+* DO_VTOL_TRANSITION (3000, param1 3 multicopter / 4 fixed wing) asks vtol_att_control for the
+  transition (``vehicle_command``) and holds the mission there, on the setpoint it had, until
+  the commander reports the new vehicle type out of transition; a vehicle that is not a VTOL
+  passes the item, as PX4.
 
 On a fixed wing (PX4's navigator for planes): altitudes are reached within NAV_FW_ALT_RAD (see
 the navigator), waypoints within the larger of their radius and the L1 distance; a takeoff
@@ -51,7 +55,9 @@ _LOITER_ITEMS: Final = frozenset({LOITER_UNLIM, LOITER_TIME})
 CMD_RTL: Final = 20
 
 # work phases of one item
-P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE = range(6)
+P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE, P_TRANSITION = range(7)
+DO_VTOL_TRANSITION: Final = 3000
+VTOL_STATE_FW: Final = 4
 
 
 DO_CHANGE_SPEED: Final = 178
@@ -70,6 +76,7 @@ class MissionMode(NavMode):
         self.phase = P_DONE
         self.reached_at_us: int | None = None
         self.mission_id = 0
+        self._to_fw = False      # the transition item's target: fixed wing (else multicopter)
 
     # -- mission (re)load -------------------------------------------------------------------
 
@@ -232,6 +239,23 @@ class MissionMode(NavMode):
             nav.send_command(CMD_RTL)
             self.phase = P_DONE
             return
+        if cmd == DO_VTOL_TRANSITION and nav.is_vtol():
+            # PX4 keeps a DO item's param1 in mission_item.params[0], which is time_inside
+            self._to_fw = int(round(item.time_inside)) == VTOL_STATE_FW
+            nav.send_command(DO_VTOL_TRANSITION, float(item.time_inside))
+            # meanwhile a plain position setpoint (not a takeoff one, which the plane's
+            # controller would start a climb-out from): to a plane, the next position item,
+            # which it flies to once on the wing; to a multicopter, here. The rotors' transition
+            # task follows neither, it holds the altitude.
+            cur = nav.triplet.current
+            alt = cur.alt if cur.valid else pos[2]
+            nxt = next((it for it in self.items[self.index + 1:]
+                        if it.nav_cmd in _POSITION_ITEMS), None) if self._to_fw else None
+            lat, lon = (nxt.lat, nxt.lon) if nxt is not None else (pos[0], pos[1])
+            nav.set_current(SP_POSITION, lat, lon, alt, nav.heading())
+            self.phase = P_TRANSITION
+            self.publish_result()
+            return
         if cmd not in _POSITION_ITEMS:  # DO_* items act at once and are passed
             if cmd == DO_CHANGE_SPEED and item.speed_m_s > 0:
                 nav.cruise_speed = float(item.speed_m_s)
@@ -311,6 +335,12 @@ class MissionMode(NavMode):
         if fw and cur.type == SP_TAKEOFF:
             # a plane's climbout: reached once high enough, wherever it has flown meanwhile
             alt_ok = pos[2] >= cur.alt - nav.alt_acc()
+        if self.phase == P_TRANSITION:
+            if nav.vtol_state_is(self._to_fw):
+                self.seq_reached = self.index
+                self.index += 1
+                self._start_item()
+            return
         if self.phase == P_TAKEOFF_FIRST:
             if alt_ok and not nav.landed():
                 self._start_item()  # the inserted climb is done: now the item itself

@@ -152,6 +152,17 @@ class NavigatorModule(WorkItemModule):
         st = self._sub_status.node.last
         return st is not None and st.vehicle_type == VEHICLE_TYPE_FIXED_WING
 
+    def is_vtol(self) -> bool:
+        st = self._sub_status.node.last
+        return st is not None and bool(st.is_vtol)
+
+    def vtol_state_is(self, fixed_wing: bool) -> bool:
+        """A VTOL's transition is over and it flies as ``fixed_wing`` says (the commander's
+        vehicle_type from vtol_vehicle_status)."""
+        st = self._sub_status.node.last
+        return st is not None and not st.in_transition_mode and \
+            (st.vehicle_type == VEHICLE_TYPE_FIXED_WING) == fixed_wing
+
     def alt_acc(self) -> float:
         """Altitude acceptance radius (PX4's get_altitude_acceptance_radius): NAV_MC_ALT_RAD,
         on a plane NAV_FW_ALT_RAD, or NAV_FW_ALTL_RAD while the next setpoint is a landing."""
@@ -252,10 +263,11 @@ class NavigatorModule(WorkItemModule):
         self.result.timestamp = self.now_us
         self._pub_result.publish(self.result)
 
-    def send_command(self, command: int) -> None:
+    def send_command(self, command: int, param1: float = 0.0) -> None:
         c = self._cmd
         c.timestamp = self.now_us
         c.command = command
+        c.param1 = param1
         c.param5 = c.param6 = math.nan
         c.param7 = math.nan
         c.target_system = 0

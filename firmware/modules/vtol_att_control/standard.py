@@ -11,11 +11,14 @@ group 1 (surfaces and pusher, AUX on the FMU).
 
 Front transition: the pusher ramps to VT_F_TRANS_THR over VT_PSHER_RMP_DT while the rotors keep
 the vehicle level; above VT_ARSP_BLEND the rotors' share falls linearly to zero at
-VT_ARSP_TRANS and the surfaces' share rises; the transition completes at VT_ARSP_TRANS, not
-before VT_TRANS_MIN_TM. Without an airspeed reading (VT_ARSP_TRANS needs one) the blend runs
+VT_ARSP_TRANS; the transition completes at VT_ARSP_TRANS, not before VT_TRANS_MIN_TM. The
+surfaces are live throughout both transitions (share 1; both attitude controllers hold the same
+level setpoint then): the wing's nose-down moment grows with airspeed, and with the elevator
+locked at neutral the rotors alone cannot trim it (the quadplane model pitched down 26 degrees
+and lost its height in the first flight that tried). Without an airspeed reading (VT_ARSP_TRANS needs one) the blend runs
 on time instead, over VT_F_TRANS_DUR, as PX4 does when airspeed is disabled. Back transition:
 pusher off, the rotors' share ramps back to one over VT_B_TRANS_RAMP, and the vehicle is a
-multicopter again after VT_B_TRANS_DUR.
+multicopter again after VT_B_TRANS_DUR, when the surfaces are released.
 
 Quad-chute (PX4's name for giving up on the wing): a front transition that takes longer than
 VT_TRANS_TIMEOUT, or fixed-wing flight that drops below VT_FW_MIN_ALT above home or exceeds
@@ -168,8 +171,8 @@ class StandardVtol:
             else:
                 blend = 0.0
             mc = 1.0 - min(1.0, max(0.0, blend))
-            return VtolOutputs(mode, mc, 1.0 - mc, pusher, self.quad_chute)
-        # back transition: pusher off, rotors ramp back in, surfaces fade out
+            return VtolOutputs(mode, mc, 1.0, pusher, self.quad_chute)
+        # back transition: pusher off, rotors ramp back in
         ramp = min(1.0, dt / p.b_trans_ramp_s) if p.b_trans_ramp_s > 0 else 1.0
         mc = self.mc_weight_at_back_s + (1.0 - self.mc_weight_at_back_s) * ramp
-        return VtolOutputs(mode, mc, 1.0 - mc, 0.0, self.quad_chute)
+        return VtolOutputs(mode, mc, 1.0, 0.0, self.quad_chute)

@@ -24,11 +24,12 @@ def test_front_transition_blends_on_airspeed_and_ends_at_the_transition_airspeed
     assert v.request(True)
     out = v.update(_at(1.0, airspeed=1.0))
     assert out.mode is Mode.TRANSITION_TO_FW and out.pusher == 0.0 and out.mc_weight == 1.0
+    assert out.fw_weight == 1.0                               # surfaces live from the start
     out = v.update(_at(2.0, airspeed=5.0))
     assert out.pusher == 0.5 and out.mc_weight == 1.0        # ramping, below the blend speed
     out = v.update(_at(3.0, airspeed=10.0))
     assert out.pusher == 1.0 and math.isclose(out.mc_weight, 0.5)  # half way 8 -> 12 m/s
-    assert math.isclose(out.fw_weight, 0.5)
+    assert out.fw_weight == 1.0
     out = v.update(_at(3.5, airspeed=12.5))
     assert out.mode is Mode.TRANSITION_TO_FW                  # fast, but not VT_TRANS_MIN_TM yet
     out = v.update(_at(4.1, airspeed=12.5))
