@@ -22,11 +22,14 @@ tuples), so it can be marshalled to another process unchanged. The payload per p
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Final
+from typing import TYPE_CHECKING, Any, Callable, Final
 
 from mypy_extensions import mypyc_attr
 
 from board.kernel import Kernel
+
+if TYPE_CHECKING:  # protocols: erased at run time, plain objects to mypyc
+    from board.protocols import InputPin, OutputPin, PwmOutput, UartPort
 
 __all__ = ["Board", "PortInfo", "Record"]
 
@@ -81,7 +84,7 @@ class Board:
         """Record an output on ``port`` (called by the port adapters)."""
         self._outbox.append((port, t_ns, payload))
 
-    def expose_uart(self, name: str, uart: Any) -> None:
+    def expose_uart(self, name: str, uart: UartPort) -> None:
         """Expose a :class:`board.uart.Uart`: its TX bursts leave, bursts arriving feed its RX."""
         self._add_port(name, "uart", "inout")
         self.hw_inputs.add(name)  # the USART (and its DMA) receives with the CPU halted
@@ -101,7 +104,7 @@ class Board:
 
         self._inputs[name] = deliver
 
-    def expose_pin_out(self, name: str, pin: Any) -> None:
+    def expose_pin_out(self, name: str, pin: OutputPin) -> None:
         """Expose a pin this chip drives; its level changes leave as records."""
         self._add_port(name, "pin", "out")
         levels = self.port_levels
@@ -112,7 +115,7 @@ class Board:
 
         pin.on_change(changed)
 
-    def expose_pin_in(self, name: str, pin: Any) -> None:
+    def expose_pin_in(self, name: str, pin: InputPin) -> None:
         """Expose a pin driven from outside (a switch, another chip's output)."""
         self._add_port(name, "pin", "in")
         k = self.kernel
@@ -126,7 +129,7 @@ class Board:
 
         self._inputs[name] = deliver
 
-    def expose_pwm(self, name: str, channel: Any) -> None:
+    def expose_pwm(self, name: str, channel: PwmOutput) -> None:
         """Expose a timer channel's PWM output (pulse width and period as they change)."""
         self._add_port(name, "pwm", "out")
         levels = self.port_levels

@@ -48,7 +48,10 @@ starts its own set with no other change (docs/driver_guide.md, "Adding a device"
 from __future__ import annotations
 
 import os
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from board.adc import Adc
 from board.board import Board
@@ -69,6 +72,11 @@ from firmware.platform import Platform
 from firmware.shell.line_editor import LineEditor
 from peripherals.errors import rng_for
 from peripherals.physics import Environment
+
+if TYPE_CHECKING:
+    from board.spi import SpiHandle
+    from firmware.shell import Shell
+    from firmware.system import System
 
 __all__ = ["FmuV2Board", "TRUTH_KEYS", "BOOT_TO_SENSORS_NS"]
 
@@ -99,7 +107,8 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
                  sd_root: str | None = None, spec: BoardSpecData = FMU_V2,
                  firmware: str = "rcS", exclude: tuple[str, ...] = (),
                  gps_baud: int = 38_400, params: dict[str, int | float] | None = None,
-                 host_clock: Any = None, uavcan_nodes: tuple[int | str, ...] = (),
+                 host_clock: Callable[[], float] | None = None,
+                 uavcan_nodes: tuple[int | str, ...] = (),
                  gps_utc_start_ns: int | None = None,
                  host_ports: tuple[str, ...] = (),
                  extra_devices: tuple[str, ...] = ()) -> None:
@@ -114,12 +123,12 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         self.gpio = Gpio(k, f"{name}.gpio")
         self.platform = Platform(k)
         self.sd_root = sd_root
-        self.system: Any = None
-        self.shell: Any = None
+        self.system: System | None = None
+        self.shell: Shell | None = None
         self._param_overrides = dict(params or {})
         self._host_clock = host_clock
         self._console_editor = LineEditor()
-        self._ctl_shell: Any = None
+        self._ctl_shell: Shell | None = None
         self.reboot_requested = False
         self.spi = {b.name: SpiBus(k, b.name, pclk_hz=b.pclk_hz) for b in spec.spi}
         self.i2c = {b.name: I2cBus(k, b.name, clock_hz=b.clock_hz) for b in spec.i2c}
@@ -163,7 +172,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
 
     # -- construction -----------------------------------------------------------------------
 
-    def _rng(self, device: str) -> Any:
+    def _rng(self, device: str) -> np.random.Generator:
         return rng_for(self.seed, f"{self.name}.{device}")
 
     def _build_devices(self) -> None:
@@ -226,10 +235,12 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         self._emit_reboot = self.expose_output("reboot")
         # MAV_CMD_INJECT_FAILURE: requests to the orchestrator's fault injector and its answers
         self._emit_failure = self.expose_output("failure_request")
-        self.failure_reply_handler: Any = None
+        #: the failure_injector module's ``handler(t_ns, (seq, mav_result, text))``
+        self.failure_reply_handler: Callable[[int, Any], None] | None = None
         self.expose_input("failure_reply", self._on_failure_reply)
         self.udp_out = self.expose_output("udp_out")
-        self.udp_handlers: dict[int, Any] = {}
+        #: the mavlink module's UDP instances by local port: ``handler(t_ns, remote_port, data)``
+        self.udp_handlers: dict[int, Callable[[int, int, bytes], None]] = {}
         self.expose_input("udp_in", self._on_udp)
 
     def _expose_host_port(self, connector: str) -> None:
@@ -252,18 +263,18 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         raise ValueError(f"board {self.name}: no connector {connector!r} to expose (CAN buses "
                          f"or UARTs without a port)")
 
-    def _on_udp(self, t_ns: int, payload: Any) -> None:
+    def _on_udp(self, t_ns: int, payload: tuple[int, int, bytes]) -> None:
         fmu_port, remote_port, data = payload
         handler = self.udp_handlers.get(fmu_port)
         if handler is not None:
             handler(t_ns, remote_port, data)
 
-    def _on_truth(self, t_ns: int, r: Any) -> None:
+    def _on_truth(self, t_ns: int, r: tuple) -> None:
         self.env.set_truth(t_ns, r[_ACCEL], r[_GYRO], r[_MAG], r[_PRESSURE], r[_TEMPERATURE],
                            r[_LAT], r[_LON], r[_ALT], r[_VEL])
         self.env.diff_pressure_pa = r[_DIFF_PRESSURE]   # the pitot's, for an airspeed sensor
 
-    def _on_power(self, t_ns: int, record: Any) -> None:
+    def _on_power(self, t_ns: int, record: tuple[float, float]) -> None:
         self._power_v, self._power_a = record
 
     # -- firmware start-up -------------------------------------------------------------------
@@ -287,12 +298,13 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         p = self.platform
         registry = ModuleRegistry(None, board_modules(self.spec))
         console = self.uarts["UART7"]
+
+        def to_console(text: str) -> None:
+            console.write(text.encode())
+
         self.system = system = System(p, None, modules=registry, board=self.spec,
                                       sd_root=self.sd_root, reboot=self._reboot_request,
-                                      host_clock=self._host_clock,
-                                      console=lambda text: console.write(text.encode()))
-        system.hw = self
-        system.adc = self.adc
+                                      host_clock=self._host_clock, console=to_console, hw=self)
         defs = list(system_params.PARAMS) + registry.param_defs()
         storage = None
         for d in self.spec.drivers("storage"):  # the FRAM's MTD, before the parameters load
@@ -313,7 +325,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         elif self._param_overrides:
             for name, value in self._param_overrides.items():
                 params.set(name, value, notify=False)
-        self.shell = Shell(system, output=lambda text: console.write(text.encode()))
+        self.shell = Shell(system, output=to_console)
         console.on_rx(self._console_rx)
         romfs.boot(self.shell)
 
@@ -333,7 +345,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         :attr:`failure_reply_handler`; nothing in the board acts on the request itself."""
         self._emit_failure(self.kernel.now_ns, (seq, unit, failure_type, instance))
 
-    def _on_failure_reply(self, t_ns: int, payload: Any) -> None:
+    def _on_failure_reply(self, t_ns: int, payload: tuple[int, int, str]) -> None:
         handler = self.failure_reply_handler
         if handler is not None:
             handler(t_ns, payload)
@@ -355,7 +367,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
             self.shell.execute(line)
         self.uarts["UART7"].write(b"nsh> ")
 
-    def spi_handle(self, device: str) -> Any:
+    def spi_handle(self, device: str) -> SpiHandle:
         for bus in self.spec.spi:
             for dev in bus.devices:
                 if dev.name == device:
@@ -386,20 +398,21 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
 
     def ctl_shell(self, line: str) -> tuple[int, str]:
         """Run one shell command now; returns (exit status, output)."""
-        if self.shell is None:
+        system = self.system
+        if self.shell is None or system is None:
             return 1, "nsh: the firmware has not booted the shell (firmware='rcS' boots it)\n"
         from firmware.shell import Shell
 
         out: list[str] = []
         if self._ctl_shell is None:  # a session of its own, like nsh on another port
-            self._ctl_shell = Shell(self.system)
+            self._ctl_shell = Shell(system)
         self._ctl_shell.output = out.append
         status = self._ctl_shell.execute(line)
         return status, "".join(out)
 
     def ctl_mavlink(self, what: str = "links") -> list[dict[str, Any]]:
         """Counters of the mavlink links (tests, tools)."""
-        mod = self.system.modules.get("mavlink") if self.system is not None else None
+        mod: Any = self.system.modules.get("mavlink") if self.system is not None else None
         if mod is None:
             return []
         keys = ("rx_messages", "rx_errors", "rx_unknown", "rx_unhandled", "rx_not_for_us",
@@ -468,11 +481,12 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
             return
 
         class _Hog(WorkItem):
+            runs = 0
+
             def run(self) -> None:
                 self.runs += 1
 
         hog = _Hog(self.platform, "cpu_hog", wq)
-        hog.runs = 0
         hog.cpu_cost_ns = round(fraction * period_us * 1000)
         hog.schedule_on_interval(period_us)
         hogs[wq] = hog

@@ -19,7 +19,10 @@ from typing import TYPE_CHECKING, Any
 from firmware.platform.module import ModuleRegistry
 
 if TYPE_CHECKING:
+    from board.adc import Adc
+    from board.protocols import BoardHardware
     from board.specs import BoardSpecData
+    from firmware.drivers.mtd.fram import FramPartition
     from firmware.platform import Platform
     from firmware.platform.params import Params
     from firmware.platform.workqueue import WorkItem
@@ -89,6 +92,11 @@ class System:
 
     ``reboot(to_bootloader)`` is called by the shell's ``reboot``; the board (or hil) decides
     what a reboot means. ``host_clock`` enables the host-time column of ``top``.
+
+    ``hw`` is the board's hardware as firmware sees it (:class:`board.protocols.BoardHardware`:
+    buses, pins, ADC, spec), from which driver modules build their drivers; None for a system
+    without a board (a test's registry of dummy modules). ``adc`` is the board's ADC (the
+    battery monitor's), ``hw.adc`` unless given.
     """
 
     def __init__(self, platform: Platform, params: Params | None = None, *,
@@ -101,12 +109,18 @@ class System:
                  host_clock: Callable[[], float] | None = None,
                  version: str = "fmu-hil 0.1.0",
                  git_hash: str | None = None,
-                 console: Callable[[str], None] | None = None) -> None:
+                 console: Callable[[str], None] | None = None,
+                 hw: BoardHardware | None = None,
+                 adc: Adc | None = None) -> None:
         from firmware import romfs
 
         self.platform = platform
         self.params = params
         self.board = board
+        self.hw = hw
+        self.adc = adc if adc is not None else (hw.adc if hw is not None else None)
+        #: the FRAM's waypoint partition, when the board has one (dataman keeps missions there)
+        self.waypoints_partition: FramPartition | None = None
         self.board_name = board_name or (board.name if board is not None else "px4_fmu-v2")
         self.sd_root = Path(sd_root) if sd_root is not None else None
         self.romfs_root = Path(romfs_root) if romfs_root is not None else romfs.ROMFS_ROOT

@@ -8,7 +8,11 @@ terminal, a ground-station link. Each device names the ports it owns; the hub ro
 the owner and concatenates outputs in device order, so routing stays deterministic.
 
 A device is any object with ``ports`` (names it owns), ``run_until(t_ns)``,
-``outputs(until_ns) -> list`` and ``input(port, t_ns, payload)``.
+``outputs(until_ns) -> list`` and ``input(port, t_ns, payload)``: :class:`HostDevice`, the
+protocol the orchestrator's ``world`` follows too (a :class:`DeviceHub`, or one device alone such
+as :class:`hil.worldlink.WorldPorts`). Optional members the orchestrator and the hub look for
+with ``hasattr``: ``wired`` (the output ports something is wired to, so a device computes only
+those), ``set_wired(ports)``, ``lead_ns`` and ``runs_ahead``.
 
 A device whose behaviour is a script fixed before the run (``runs_ahead = True``: an RC
 transmitter playing a timeline) is run ``lead_ns`` ahead (the orchestrator sets it to one
@@ -21,32 +25,50 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Protocol
 
-__all__ = ["Device", "DeviceHub"]
+from board.protocols import Record
+
+__all__ = ["Device", "DeviceHub", "HostDevice"]
 
 
-class Device(Protocol):
-    ports: Iterable[str]
+class HostDevice(Protocol):
+    """Something outside the boards with ports on the wiring: the world, a device, the hub."""
 
-    def run_until(self, t_ns: int) -> None: ...
+    @property
+    def ports(self) -> Iterable[str]:
+        """The port names it owns (inputs and outputs)."""
+        ...
 
-    def outputs(self, until_ns: int) -> list: ...
+    def run_until(self, t_ns: int) -> None:
+        """Advance to ``t_ns`` (the end of the quantum, or one quantum more if it runs
+        ahead)."""
+        ...
 
-    def input(self, port: str, t_ns: int, payload: Any) -> None: ...
+    def outputs(self, until_ns: int) -> list[Record]:
+        """The records ``(port, t_ns, payload)`` produced up to ``until_ns``, once each."""
+        ...
+
+    def input(self, port: str, t_ns: int, payload: Any) -> None:
+        """A record arriving on one of its input ports (ValueError for a port it lacks)."""
+        ...
+
+
+#: the name this protocol had first
+Device = HostDevice
 
 
 class DeviceHub:
     """Several host devices acting as the orchestrator's world."""
 
-    def __init__(self, *devices: Device) -> None:
-        self.devices: list[Device] = []
-        self._owner: dict[str, Device] = {}
+    def __init__(self, *devices: HostDevice) -> None:
+        self.devices: list[HostDevice] = []
+        self._owner: dict[str, HostDevice] = {}
         self.wired: set[str] | None = None
         #: how far ahead devices with ``runs_ahead`` run (the orchestrator sets one quantum)
         self.lead_ns = 0
         for d in devices:
             self.add(d)
 
-    def add(self, device: Device) -> Device:
+    def add(self, device: HostDevice) -> HostDevice:
         for port in device.ports:
             if port in self._owner:
                 raise ValueError(f"host port {port!r} owned by two devices: "
@@ -63,7 +85,7 @@ class DeviceHub:
                 d.wired = None if self.wired is None else {p for p in self.wired
                                                            if self._owner.get(p) is d}
 
-    def set_wired(self, wired: set[str]) -> None:
+    def set_wired(self, wired: set[str] | None) -> None:
         self.wired = wired
         self._push_wired()
 
@@ -83,8 +105,8 @@ class DeviceHub:
         for d in self.devices:
             d.run_until(t_ns + lead if getattr(d, "runs_ahead", False) else t_ns)
 
-    def outputs(self, until_ns: int) -> list:
-        out: list = []
+    def outputs(self, until_ns: int) -> list[Record]:
+        out: list[Record] = []
         lead = self.lead_ns
         for d in self.devices:
             out += d.outputs(until_ns + lead if getattr(d, "runs_ahead", False) else until_ns)

@@ -26,8 +26,10 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from board.endpoint import BoardDied, LocalHandle
+from board.protocols import BoardHandle
 from board.wiring import WORLD, Wire
 from hil.cpu_plan import CpuPlan
+from hil.devices import HostDevice
 from hil.trace import TraceWriter
 
 __all__ = ["BoardSpec", "Orchestrator", "BoardDied", "TraceWriter"]
@@ -52,7 +54,8 @@ class Orchestrator:
     """Runs boards (as processes, or in this process) and an optional world in lockstep."""
 
     def __init__(self, boards: dict[str, BoardSpec], wiring: Iterable[Wire] = (),
-                 world: Any = None, quantum_ns: int = 1_000_000, mode: str = "process",
+                 world: HostDevice | None = None, quantum_ns: int = 1_000_000,
+                 mode: str = "process",
                  speed: float | None = None, trace_path: str | None = None,
                  start_method: str = "spawn", keep_running_on_death: bool = True,
                  log: Callable[[str], None] | None = None, pipeline: bool = False,
@@ -74,7 +77,7 @@ class Orchestrator:
         self.log = log or (lambda msg: None)
         self.t_ns = 0
         self.quanta = 0
-        self.handles: dict[str, Any] = {}
+        self.handles: dict[str, BoardHandle] = {}
         self.dead: dict[str, str] = {}
         self._inbox: dict[str, list] = {name: [] for name in boards}
         #: boards that expose a "reboot" output, reboots requested this quantum, reboot counts
@@ -296,7 +299,7 @@ class Orchestrator:
             self._collect(name, handle, until)
         self._end_quantum(until)
 
-    def _post(self, name: str, handle: Any, start: int, until: int) -> None:
+    def _post(self, name: str, handle: BoardHandle, start: int, until: int) -> None:
         inputs = self._inbox[name]
         self._inbox[name] = []
         handle.post_advance(start, until, inputs)
@@ -304,7 +307,7 @@ class Orchestrator:
         self._posted_to[name] = until
         self.exchanges += 1
 
-    def _collect(self, name: str, handle: Any, upto: int) -> None:
+    def _collect(self, name: str, handle: BoardHandle, upto: int) -> None:
         """Wait for a board's posted quanta ending at or before ``upto`` and route what they
         sent (pipelined mode)."""
         pending = self._pending[name]
@@ -339,13 +342,15 @@ class Orchestrator:
         routes = self._routes
         inbox = self._inbox
         dead = self.dead
+        world = self.world
         for rec in records:
             dsts = routes.get((board, rec[0]))
             if not dsts:
                 continue  # an output nothing is wired to (an unconnected pin) goes nowhere
             for dst_board, dst_port in dsts:
                 if dst_board == WORLD:
-                    self.world.input(dst_port, rec[1], rec[2])
+                    assert world is not None  # a wire to the world needs one (_check_wiring)
+                    world.input(dst_port, rec[1], rec[2])
                 elif dst_board not in dead:
                     inbox[dst_board].append(rec if dst_port == rec[0]
                                             else (dst_port, rec[1], rec[2]))
@@ -376,6 +381,7 @@ class Orchestrator:
             return  # an output nothing is wired to (an unconnected pin) goes nowhere
         for dst_board, dst_port in dsts:
             if dst_board == WORLD:
+                assert self.world is not None  # a wire to the world needs one (_check_wiring)
                 self.world.input(dst_port, t_ns, payload)
             elif dst_board not in self.dead:
                 self._inbox[dst_board].append((dst_port, t_ns, payload))

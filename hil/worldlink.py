@@ -5,6 +5,9 @@ tuple in :data:`TRUTH_FIELDS` order) and ``battery`` (voltage, current). Inputs:
 ``esc8`` (PWM pulse width and period from the IO's MAIN outputs; world channels 0..7) and
 ``aux1`` .. ``aux6`` (the FMU's AUX outputs; world channels 8..13). What a channel drives (an
 ESC and motor, a servo, nothing) is the airframe's data (``hil.world.fdm.Airframe.outputs``).
+
+:class:`WorldPorts` is a :class:`hil.devices.HostDevice`: the orchestrator takes it as its
+``world`` alone, or behind a :class:`hil.devices.DeviceHub` beside other host devices.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from __future__ import annotations
 from operator import attrgetter
 from typing import Any
 
+from board.protocols import Record
 from hil.world import World
 from hil.world.fdm import N_MAIN
 from hil.world.truth import Truth
@@ -34,14 +38,14 @@ def truth_from_record(record: tuple) -> Truth:
 class WorldPorts:
     """Wraps a :class:`World` with the port interface the orchestrator routes through."""
 
-    ports = ("truth", "battery", *(f"esc{i}" for i in range(1, 9)),
-             *(f"aux{i}" for i in range(1, 7)))
+    ports: tuple[str, ...] = ("truth", "battery", *(f"esc{i}" for i in range(1, 9)),
+                              *(f"aux{i}" for i in range(1, 7)))
 
     def __init__(self, world: World | None = None, truth_every_steps: int = 1, **kwargs: Any
                  ) -> None:
         self.world = world if world is not None else World(**kwargs)
         self.truth_every_steps = truth_every_steps
-        self._out: list = []
+        self._out: list[Record] = []
         #: Output ports something is wired to (set by the orchestrator); None means all.
         #: Truth costs as much as a JSBSim step, so it is only computed when it goes somewhere.
         self.wired: set[str] | None = None
@@ -66,7 +70,7 @@ class WorldPorts:
         if wired is None or "battery" in wired:
             self._out.append(("battery", w.t_ns, (w.battery.voltage_v, w.battery.current_a)))
 
-    def outputs(self, until_ns: int) -> list:
+    def outputs(self, until_ns: int) -> list[Record]:
         out = self._out
         self._out = []
         return out

@@ -19,9 +19,18 @@ is what both use.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from firmware.platform.module import ModuleBase, ModuleError, UsageError
+
+if TYPE_CHECKING:
+    from board.gpio import Pin
+    from board.protocols import BoardHardware
+    from board.specs import DevicePlace
+    from firmware.platform import Platform
+    from firmware.platform.params import Params
+    from firmware.system import System
 
 __all__ = ["DriverModule", "Mpu6000Module", "L3gd20Module", "Lsm303dModule", "Ms5611Module",
            "Hmc5883Module", "GpsModule", "MtdModule", "Ms4525AirspeedModule"]
@@ -37,19 +46,19 @@ class DriverModule(ModuleBase):
 
     OPTIONS: ClassVar[str] = ""  # single-letter flags accepted before/after ``start``
 
-    def __init__(self, system: Any, args: list[str] | tuple = ()) -> None:
+    def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
         self.driver: Any = None
         self.opts: dict[str, str | bool] = {}
 
     @classmethod
-    def instantiate(cls, system: Any, args: list[str]) -> DriverModule:
+    def instantiate(cls, system: System, args: Sequence[str]) -> DriverModule:
         inst = cls(system, args)
         inst.opts = cls.parse_options(args)
         return inst
 
     @classmethod
-    def parse_options(cls, args: list[str] | tuple[str, ...]) -> dict[str, str | bool]:
+    def parse_options(cls, args: Sequence[str]) -> dict[str, str | bool]:
         """``OPTIONS`` flags (``X``, or ``d:`` with a value) from a start command line."""
         opts: dict[str, str | bool] = {}
         i = 0
@@ -69,15 +78,16 @@ class DriverModule(ModuleBase):
         return opts
 
     @property
-    def hw(self) -> Any:
-        hw = getattr(self.system, "hw", None)
+    def hw(self) -> BoardHardware:
+        hw: BoardHardware | None = getattr(self.system, "hw", None)
         if hw is None:
             raise ModuleError("this system has no board hardware")
         return hw
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:  # pragma: no cover - abstract
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool],
+              params: Params | None) -> Any:  # pragma: no cover - abstract
         """The driver for the device at ``place`` (:class:`board.specs.DevicePlace`) on the
         board ``hw``; not started."""
         raise NotImplementedError
@@ -115,12 +125,12 @@ class DriverModule(ModuleBase):
         return self.driver.status().splitlines() if self.driver is not None else []
 
 
-def _pin(hw: Any, place: Any, i: int = 0) -> Any:
+def _pin(hw: BoardHardware, place: DevicePlace, i: int = 0) -> Pin | None:
     """The board pin of the device's ``i``-th data-ready line, or None (poll)."""
     return hw.gpio.pin(place.drdy[i]) if len(place.drdy) > i else None
 
 
-def _rotation(place: Any) -> dict[str, Any]:
+def _rotation(place: DevicePlace) -> dict[str, Any]:
     """The spec's rotation as a keyword, or nothing (the driver's own default)."""
     return {} if place.rotation is None else {"rotation": place.rotation}
 
@@ -131,8 +141,8 @@ class Mpu6000Module(DriverModule):
                    "IMU_GYRO_RATEMAX)")
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.imu.mpu6000 import Mpu6000Driver, gyro_rate_limit
 
         return Mpu6000Driver(platform, hw.spi_handle(place.name), drdy_pin=_pin(hw, place),
@@ -145,8 +155,8 @@ class L3gd20Module(DriverModule):
     DESCRIPTION = "ST L3GD20 gyroscope on SPI1 (760 Hz, DRDY on PB0)"
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.imu.l3gd20 import L3gd20Driver
 
         return L3gd20Driver(platform, hw.spi_handle(place.name), drdy_pin=_pin(hw, place),
@@ -158,8 +168,8 @@ class Lsm303dModule(DriverModule):
     DESCRIPTION = "ST LSM303D accelerometer + magnetometer on SPI1 (polled)"
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.imu.lsm303d import Lsm303dDriver
 
         # polled: PX4's driver does not use INT1/INT2 (the spec wires them for the model)
@@ -171,8 +181,8 @@ class Ms5611Module(DriverModule):
     DESCRIPTION = "MEAS MS5611 barometer on SPI1"
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.barometer.ms5611 import Ms5611Driver
 
         return Ms5611Driver(platform, hw.spi_handle(place.name), bus=place.bus_number)
@@ -186,8 +196,8 @@ class Hmc5883Module(DriverModule):
              "-T  run the self-test at start")
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
 
         bus_name, bus, external = place.bus, place.bus_number, place.external
@@ -206,8 +216,8 @@ class Ms4525AirspeedModule(DriverModule):
     DESCRIPTION = "TE MS4525DO airspeed sensor (differential pressure) on the external I2C"
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.airspeed.ms4525 import Ms4525Driver
 
         return Ms4525Driver(platform, hw.i2c[place.bus].device(place.address),
@@ -221,8 +231,8 @@ class GpsModule(DriverModule):
     USAGE = ("-d DEV  serial device (default /dev/ttyS3, the GPS port)",)
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.gps.gps import GpsDriver
 
         dev = str(opts.get("d", place.device))
@@ -237,8 +247,8 @@ class MtdModule(DriverModule):
     DESCRIPTION = "FM25V01 FRAM on SPI2: parameter and waypoint partitions"
 
     @classmethod
-    def build(cls, platform: Any, hw: Any, place: Any, opts: dict[str, str | bool],
-              params: Any) -> Any:
+    def build(cls, platform: Platform, hw: BoardHardware, place: DevicePlace,
+              opts: dict[str, str | bool], params: Params | None) -> Any:
         from firmware.drivers.mtd.fram import FramMtd
 
         return FramMtd(platform, hw.spi_handle(place.name))
