@@ -44,7 +44,7 @@ CONVERSION_NS: Final = (2_000_000, 4_000_000, 8_000_000, 16_000_000)
 RESET_NS: Final = 1_000_000           # deaf after a soft reset
 PRESS_LSB_PER_PA: Final = 64
 TEMP_LSB_PER_C: Final = 100
-PRESSURE_NOISE_PA: Final = 1.5        # rms, one conversion at OSR 1x (halves per 4x)
+PRESSURE_NOISE_PA: Final = 1.5        # rms at OSR 1x, halved by each OSR step
 
 REGISTERS: Final = [
     Reg(0x00, "WHO_AM_I", reset=WHO_AM_I_VALUE, access="r"),
