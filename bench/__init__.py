@@ -51,6 +51,8 @@ FIGURES: list[Figure] = [
            "flight_rtf over JSBSim's F450 alone, same run: comparable across machines", 20),
     Figure("flight_rtf_fw", "bench_flight:bench_flight_rtf_fw", "x real time",
            "the standard plane's default mission (hil run --airframe plane)", 23),
+    Figure("flight_rtf_vtol", "bench_flight:bench_flight_rtf_vtol", "x real time",
+           "the standard VTOL's default mission (hil run --airframe vtol)", 23),
     Figure("mpu6000_sample_us", "bench_mpu6000:bench_mpu6000_sample_us", "us/sample",
            "host cost of one MPU6000 sample end to end (model, DRDY, SPI, driver, publish)", 4),
 ]

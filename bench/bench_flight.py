@@ -6,7 +6,8 @@ the GCS, the whole mission. One run (it takes a minute or more); the figure is t
 flight. Both move together with the machine's speed, so the ratio says how much of the
 machine's pace the emulated boards cost, in a figure comparable across machines. The flight is
 flown once per process and shared by both figures. ``flight_rtf_fw`` is the same for the
-standard plane's default mission (a longer flight: about five virtual minutes).
+standard plane's default mission (a longer flight: about five virtual minutes), and
+``flight_rtf_vtol`` for the standard VTOL's (hover, both transitions and the plane's square).
 """
 
 from __future__ import annotations
@@ -29,6 +30,12 @@ def bench_flight_rtf_fw() -> float:
     """The standard plane's default mission (SYS_AUTOSTART 2100), as ``hil run --airframe
     plane`` flies it."""
     return _flight_rtf(2100)
+
+
+def bench_flight_rtf_vtol() -> float:
+    """The standard VTOL's default mission (SYS_AUTOSTART 13000), as ``hil run --airframe
+    vtol`` flies it."""
+    return _flight_rtf(13000)
 
 
 def bench_flight_rtf() -> float:

@@ -154,3 +154,14 @@ def test_a_vtol_on_the_wing_is_never_landed() -> None:
     b.set("vehicle_status", in_transition_mode=False)  # a multicopter at rest: landed
     b.run(2.0)
     assert b.landed
+
+
+def test_return_on_the_wing_transitions_back_first() -> None:
+    rig = nav_rig()
+    rig.set("vehicle_status", vehicle_type=FIXED_WING, is_vtol=True)
+    cmds = rig.sub("vehicle_command")
+    at(rig, 200, 0, 30.0)
+    mode(rig, RTL)
+    cmd = cmds.update()
+    assert cmd is not None and (cmd.command, cmd.param1) == (3000, MC)
+    assert "Return: transition to multicopter first" in rig.dmesg()

@@ -18,6 +18,10 @@ the position controller makes its approach). Altitudes count as reached within N
 home within the L1 distance when that is larger than NAV_ACC_RAD. A negative RTL_LAND_DELAY
 keeps it circling home (PX4's default for planes without a landing site).
 
+A VTOL on the wing first asks vtol_att_control for the back transition (DO_VTOL_TRANSITION to
+multicopter) and then returns and lands as a multicopter: its vertical landing needs no
+approach, and a quad-chute's Return must not put it back on the wing it gave up.
+
 The destination is PX4's RTL_TYPE 0 (the default, "return to the closest safe point"): home
 or, when a ground station uploaded rally points (dataman's rally list), whichever of home and
 the rally points is closest to where Return starts. The phases are the same over a rally
@@ -34,6 +38,8 @@ from firmware.modules.navigator.modes import SP_LAND, SP_LOITER, SP_POSITION, Na
 __all__ = ["RTL_STATES", "RtlMode"]
 
 CLIMB, RETURN, DESCEND, LOITER, LAND, LANDED = range(6)
+DO_VTOL_TRANSITION: Final = 3000
+VTOL_STATE_MC: Final = 3.0
 RTL_STATES: Final[tuple[str, ...]] = ("climb", "return", "descend", "loiter", "land", "landed")
 
 
@@ -55,6 +61,9 @@ class RtlMode(NavMode):
         if nav.landed() or pos is None:
             self._enter(LANDED)
             return
+        if nav.is_vtol() and nav.fixed_wing():
+            nav.send_command(DO_VTOL_TRANSITION, VTOL_STATE_MC)
+            nav.info("Return: transition to multicopter first")
         if home is None:
             nav.warn("Return: no home position, landing here")
             self.home = (pos[0], pos[1], pos[2] - 0.0, nav.heading())
