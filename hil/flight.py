@@ -36,6 +36,8 @@ from hil.system import DEFAULT_QUANTUM_NS, SystemConfig, build_system
 __all__ = ["FlightConfig", "fly", "main", "SQUARE_NE"]
 
 NS_PER_S = 1_000_000_000
+#: sea-level air density of the standard atmosphere (equivalent airspeed)
+RHO0_KG_M3 = 1.225
 
 
 @dataclass
@@ -48,6 +50,9 @@ class FlightConfig:
     mode: str = "process"
     altitude_m: float = 10.0
     timeout_s: float = 240.0            # virtual seconds for the whole flight
+    #: end the flight this many virtual seconds after the start (None: fly it to the end); for
+    #: checks that need only the start of a flight, such as byte-identical logs per seed
+    stop_after_s: float | None = None
     params: dict[str, Any] = field(default_factory=dict)
     progress: bool = True
     plot: bool = True
@@ -66,7 +71,9 @@ class _Recorder:
     def __init__(self, world: Any) -> None:
         self.world = world
         self.next_ns = 0
-        #: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg, lon_deg, alt_m, airspeed_m_s, aoa_rad)
+        #: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg, lon_deg, alt_m, airspeed_m_s, aoa_rad);
+        #: the airspeed is the equivalent airspeed sqrt(2 q / rho0), what a pitot measures and
+        #: what PX4's FW_AIRSPD_* parameters mean
         self.rows: list[tuple] = []
 
     def __call__(self, orch: Any) -> None:
@@ -75,8 +82,9 @@ class _Recorder:
         self.next_ns = orch.t_ns + 50_000_000
         tr = self.world.truth()
         self.rows.append((orch.t_ns / NS_PER_S, tr.pos_ned_m, tr.agl_m, tr.euler_rad,
-                          tr.lat_deg, tr.lon_deg, tr.alt_m, tr.airspeed_m_s,
-                          getattr(tr, "aoa_rad", 0.0)))
+                          tr.lat_deg, tr.lon_deg, tr.alt_m,
+                          math.sqrt(2.0 * max(tr.diff_pressure_pa, 0.0) / RHO0_KG_M3),
+                          tr.aoa_rad))
 
 
 def tier_line() -> str:
@@ -194,6 +202,7 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         # a plane counts as up near its cruise altitude, a multicopter within 0.5 m of it
         up_m = altitude_m - (5.0 if fixed_wing else 0.5)
         deadline = orch.t_ns + int(cfg.timeout_s * S)
+        stop_ns = None if cfg.stop_after_s is None else int(cfg.stop_after_s * S)
         while orch.t_ns < deadline:
             gcs.step(0.2)
             agl = world.truth().agl_m
@@ -224,6 +233,9 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
             armed = bool(hb and hb.base_mode & 128)
             if t_takeoff is not None and not armed:
                 phase("landed and disarmed")
+                break
+            if stop_ns is not None and orch.t_ns >= stop_ns:
+                phase(f"stopped after {cfg.stop_after_s:g} s (stop_after_s)")
                 break
         else:
             raise RuntimeError(f"flight did not finish within {cfg.timeout_s} virtual s")

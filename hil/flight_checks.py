@@ -1,7 +1,8 @@
 """What a PX4 user looks at after a fixed-wing or VTOL mission, from the world's recorded truth.
 
 The rows are ``hil.flight._Recorder`` rows: (t_s, pos_ned_m, agl_m, euler_rad, lat_deg,
-lon_deg, alt_m, airspeed_m_s, aoa_rad), every 50 ms of virtual time. "Cruise" is the square:
+lon_deg, alt_m, airspeed_m_s, aoa_rad), every 50 ms of virtual time; the airspeed is the
+equivalent airspeed (what FW_AIRSPD_TRIM means). "Cruise" is the square:
 from waypoint 1 reached to the last waypoint reached, where altitude and airspeed are held.
 """
 
