@@ -19,6 +19,7 @@ is what both use.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -122,7 +123,18 @@ class DriverModule(ModuleBase):
             self.driver.stop()
 
     def status_lines(self) -> list[str]:
-        return self.driver.status().splitlines() if self.driver is not None else []
+        """The driver's own status, less what the module has printed above it: the perf
+        counters (they are the module's) and the driver's ``NAME: running on WQ`` header (the
+        module's work item line says it), so ``DRIVER status`` shows each fact once."""
+        driver = self.driver
+        if driver is None:
+            return []
+        shown = {pc.summary() for pc in self.perf_counters}
+        wq = getattr(driver, "wq", None)
+        if wq is not None:
+            shown |= {f"{driver.name}: {state} on {wq.name}" for state in ("running", "stopped")}
+        rest = [line for line in driver.status().splitlines() if line.strip() not in shown]
+        return textwrap.dedent("\n".join(rest)).splitlines()
 
 
 def _pin(hw: BoardHardware, place: DevicePlace, i: int = 0) -> Pin | None:
