@@ -384,7 +384,7 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
     print(f"  max altitude error at {summary['mission_altitude_m']:.0f} m: "
           f"{summary['max_alt_error_m']:.2f} m; max track error on the square: "
           f"{summary['max_track_error_m']:.2f} m")
-    if "waypoint_miss_m" in summary:
+    if "touchdown_distance_m" in summary:
         print(f"  waypoints passed within {summary['waypoint_miss_m']} m; cruise airspeed "
               f"{summary['cruise_airspeed_mean_m_s']} m/s (target "
               f"{summary['cruise_airspeed_target_m_s']}, max error "

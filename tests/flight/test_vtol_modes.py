@@ -165,3 +165,24 @@ def test_return_on_the_wing_transitions_back_first() -> None:
     cmd = cmds.update()
     assert cmd is not None and (cmd.command, cmd.param1) == (3000, MC)
     assert "Return: transition to multicopter first" in rig.dmesg()
+
+
+def test_commander_transition_asks_for_the_other_flight_mode() -> None:
+    """PX4's ``commander transition``: multicopter -> fixed wing and back; refused on a
+    vehicle that is no VTOL."""
+    rig = Rig(params={"MAV_TYPE": 22})
+    rig.run(0.3)
+    cmds = rig.sub("vehicle_command")
+    commander = rig.system.modules.get("commander")
+    assert commander.custom_command(["transition"]) == 0
+    cmd = cmds.update()
+    assert cmd is not None and (cmd.command, cmd.param1) == (3000, FW)
+    rig.set("vtol_vehicle_status", vehicle_vtol_state=FW)
+    rig.run(0.3)
+    assert commander.custom_command(["transition"]) == 0
+    while (c := cmds.update()) is not None:
+        cmd = c
+    assert (cmd.command, cmd.param1) == (3000, MC)
+    quad = Rig(params={"MAV_TYPE": 2})
+    quad.run(0.3)
+    assert quad.system.modules.get("commander").custom_command(["transition"]) == 1

@@ -64,6 +64,7 @@ class CommanderModule(CommandHandler, WorkItemModule):
              "disarm [-f]       disarm (-f: even in the air)",
              "takeoff           switch to Takeoff and arm",
              "land              switch to Land",
+             "transition        a VTOL: transition to the other flight mode",
              ("mode <name>       manual|stabilized|altctl|posctl|auto:mission|auto:loiter|"
               "auto:rtl|auto:takeoff|auto:land"),
              "check             run the preflight checks and print the result")

@@ -419,6 +419,23 @@ class CommandHandler:
         self.print(text)  # type: ignore[attr-defined]
         return 0 if result == ACCEPTED else 1
 
+    def _shell_transition(self) -> int:
+        """PX4's ``commander transition``: a VTOL is asked (vehicle_command
+        DO_VTOL_TRANSITION, which vtol_att_control answers) to fly the other way than it
+        flies now."""
+        st: Any = getattr(self, "_status", None)
+        if st is None or not st.is_vtol:
+            self.print("transition: not a VTOL")  # type: ignore[attr-defined]
+            return 1
+        to_fw = st.vehicle_type != st.VEHICLE_TYPE_FIXED_WING
+        pub = getattr(self, "_pub_transition", None)
+        if pub is None:
+            pub = self._pub_transition = self.advertise("vehicle_command")  # type: ignore
+        pub.publish(self._command(3000, param1=4.0 if to_fw else 3.0))
+        self.print(f"transition to {'fixed wing' if to_fw else 'multicopter'} "  # type: ignore
+                   "requested")
+        return 0
+
     def custom_command(self, args: list[str]) -> int:
         verb, rest = args[0], args[1:]
         force = float(FORCE_ARM_MAGIC) if "-f" in rest else 0.0
@@ -432,6 +449,8 @@ class CommandHandler:
             return rc or self._run_shell("arm", arm, param1=1.0)
         if verb == "land":
             return self._run_shell("land", CMD["NAV_LAND"])
+        if verb == "transition":
+            return self._shell_transition()
         if verb == "mode":
             if not rest or rest[0] not in modes.MODE_NAMES:
                 raise UsageError(f"mode: one of {', '.join(modes.MODE_NAMES)}")
