@@ -75,3 +75,31 @@ def shared_across_workers(tmp_path_factory, worker_id: str, key: str, make):
         result = make()
         result_file.write_bytes(pickle.dumps(result))
         return result
+
+
+def booted_fmu(params: dict, boot_ns: int = 1_500_000_000):
+    """An in-process FMU board booted through rcS with ``params`` (no orchestrator, no IO):
+    for module tests that stand in for the rest of the stack by publishing its topics."""
+    from board.fmu_v2 import FmuV2Board
+
+    board = FmuV2Board(seed=1, sd_root=None, params=params)
+    board.kernel.run(boot_ns)
+    return board
+
+
+def publish(board, topic: str, **fields) -> None:
+    """Publish one ``topic`` message on ``board``'s uORB, stamped now, as the module that owns
+    the topic would (a test standing in for a controller or a driver)."""
+    orb = board.platform.orb
+    msg = orb.new(topic, **fields)
+    msg.timestamp = board.kernel.now_ns // 1000
+    orb.advertise(topic).publish(msg)
+
+
+def fly_in(tmp_path_factory, name: str, **config) -> dict:
+    """``hil.flight.fly`` quietly (no progress, no plot) in a fresh folder ``name`` of the
+    session's temporary tree: one end-to-end flight's summary."""
+    from hil.flight import FlightConfig, fly
+
+    out = tmp_path_factory.mktemp(name)
+    return fly(FlightConfig(out_dir=str(out), progress=False, plot=False, **config))

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from tests.helpers import booted_fmu, publish
 
 MS = 1_000_000
 S = 1_000_000_000
@@ -14,16 +14,7 @@ S = 1_000_000_000
 
 @pytest.fixture(scope="module")
 def board():
-    b = FmuV2Board(seed=1, sd_root=None, params={"SYS_AUTOSTART": 0, "SDLOG_MODE": -1})
-    b.kernel.run(1_500 * MS)
-    return b
-
-
-def _publish(b, topic, **fields):
-    pub = b.platform.orb.advertise(topic)
-    msg = b.platform.orb.new(topic, **fields)
-    msg.timestamp = b.kernel.now_ns // 1000
-    pub.publish(msg)
+    return booted_fmu({"SYS_AUTOSTART": 0, "SDLOG_MODE": -1})
 
 
 def test_aux_outputs_follow_the_mixer_when_armed_and_stop_when_disarmed(board):
@@ -36,10 +27,10 @@ def test_aux_outputs_follow_the_mixer_when_armed_and_stop_when_disarmed(board):
     # each pin holds a level, no pulse train a servo or ESC would take
     assert all(h in (0, p) for h, p in b.ctl_aux_pwm())
     controls = [0.5, -0.25, 0.0, 0.6, 0, 0, 0, 0]
-    _publish(b, "actuator_controls_0", control=controls)
-    _publish(b, "actuator_armed", armed=True)
+    publish(b, "actuator_controls_0", control=controls)
+    publish(b, "actuator_armed", armed=True)
     b.kernel.run(b.kernel.now_ns + 700 * MS)  # pwm_limit: 500 ms INIT, then the ramp
-    _publish(b, "actuator_controls_0", control=controls)
+    publish(b, "actuator_controls_0", control=controls)
     b.kernel.run(b.kernel.now_ns + 100 * MS)
     pwm = b.ctl_aux_pwm()
     # AETR: aileron 0.5 -> 1750 us, elevator -0.25 -> 1375, throttle 0.6 (0..1) -> 1600,
@@ -49,7 +40,7 @@ def test_aux_outputs_follow_the_mixer_when_armed_and_stop_when_disarmed(board):
     assert {p for _, p in pwm[:4]} == {20_001_000}
     assert [h for h, _ in pwm[4:]] == [0, 0]  # AUX5/6: no mixer output, no pulse
     assert b.port_levels["aux1"] == pwm[0]
-    _publish(b, "actuator_armed", armed=False)
+    publish(b, "actuator_armed", armed=False)
     b.kernel.run(b.kernel.now_ns + 150 * MS)  # the 10 Hz backstop sees the disarm
     assert all(h in (0, p) for h, p in b.ctl_aux_pwm())
     status, out = b.ctl_shell("fmu status")

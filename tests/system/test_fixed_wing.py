@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 import pyulog
 
-from hil.flight import FlightConfig, fly
-from tests.helpers import shared_across_workers
+from tests.helpers import fly_in, shared_across_workers
 
 pytestmark = pytest.mark.slow
 
@@ -21,9 +20,7 @@ PLANE = 2100
 
 
 def _fly(tmp_path_factory, seed: int, name: str, stop_after_s: float | None = None) -> dict:
-    out = tmp_path_factory.mktemp(name)
-    return fly(FlightConfig(seed=seed, out_dir=str(out), airframe=PLANE, progress=False,
-                            plot=False, stop_after_s=stop_after_s))
+    return fly_in(tmp_path_factory, name, seed=seed, airframe=PLANE, stop_after_s=stop_after_s)
 
 
 @pytest.fixture(scope="module")

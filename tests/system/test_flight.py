@@ -16,16 +16,13 @@ import pyulog
 
 from hil.accuracy import TruthSample, estimator_accuracy
 from firmware.version import os_version_word, version_word
-from hil.flight import FlightConfig, fly
-from tests.helpers import shared_across_workers
+from tests.helpers import fly_in, shared_across_workers
 
 pytestmark = pytest.mark.slow
 
 
 def _fly(tmp_path_factory, seed: int, name: str, can_escs: bool = False) -> dict:
-    out = tmp_path_factory.mktemp(name)
-    return fly(FlightConfig(seed=seed, out_dir=str(out), progress=False, plot=False,
-                            keep_truth=True, can_escs=can_escs))
+    return fly_in(tmp_path_factory, name, seed=seed, keep_truth=True, can_escs=can_escs)
 
 
 @pytest.fixture(scope="module")

@@ -3,34 +3,26 @@
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from tests.helpers import booted_fmu, publish
 
 MS = 1_000_000
 
 
 @pytest.fixture(scope="module")
 def board():
-    b = FmuV2Board(seed=1, sd_root=None, params={"SYS_AUTOSTART": 0, "SDLOG_MODE": -1,
-                                                 "VT_F_TRANS_DUR": 2.0, "VT_TRANS_MIN_TM": 0.5,
-                                                 "VT_PSHER_RMP_DT": 1.0})
-    b.kernel.run(1_500 * MS)
+    b = booted_fmu({"SYS_AUTOSTART": 0, "SDLOG_MODE": -1,
+                    "VT_F_TRANS_DUR": 2.0, "VT_TRANS_MIN_TM": 0.5,
+                    "VT_PSHER_RMP_DT": 1.0})
     assert b.ctl_shell("vtol_att_control start")[0] == 0
     return b
-
-
-def _pub(b, topic, **fields):
-    pub = b.platform.orb.advertise(topic)
-    msg = b.platform.orb.new(topic, **fields)
-    msg.timestamp = b.kernel.now_ns // 1000
-    pub.publish(msg)
 
 
 def _run(b, ms, mc, fw):
     """``ms`` of the MC rate loop publishing ``mc`` at 250 Hz while the FW controller
     publishes ``fw``."""
     for _ in range(ms // 4):
-        _pub(b, "actuator_controls_virtual_fw", control=fw)
-        _pub(b, "actuator_controls_virtual_mc", control=mc)
+        publish(b, "actuator_controls_virtual_fw", control=fw)
+        publish(b, "actuator_controls_virtual_mc", control=mc)
         b.kernel.run(b.kernel.now_ns + 4 * MS)
 
 
@@ -49,7 +41,7 @@ def test_transition_command_is_acked_once_and_ends_in_fixed_wing(board):
     b = board
     mc = [0.1, -0.2, 0.05, 0.6, 0, 0, 0, 0]
     fw = [0.3, 0.4, -0.1, 0.7, 0, 0, 0, 0]
-    _pub(b, "vehicle_command", command=3000, param1=4.0, source_system=255,
+    publish(b, "vehicle_command", command=3000, param1=4.0, source_system=255,
          source_component=190, target_system=1)
     _run(b, 1000, mc, fw)  # no airspeed sensor: the blend runs on VT_F_TRANS_DUR (2 s)
     st = b.ctl_topic("vtol_vehicle_status")
