@@ -457,7 +457,7 @@ class Runner:
             raise ScenarioError(f"arming refused ({ack.result}): {text.text if text else ''}")
         gcs.start_mission()
         mark = gcs.mark()
-        seq = a["waypoint"]
+        seq = a["waypoint"] + mission.first_waypoint_seq - 1   # a VTOL's come after its DO items
 
         def passed() -> bool:
             return any(m.seq >= seq for m in gcs.messages("MISSION_ITEM_REACHED", since=mark))

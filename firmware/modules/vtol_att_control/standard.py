@@ -12,10 +12,11 @@ group 1 (surfaces and pusher, AUX on the FMU).
 Front transition: the pusher ramps to VT_F_TRANS_THR over VT_PSHER_RMP_DT while the rotors keep
 the vehicle level; above VT_ARSP_BLEND the rotors' share falls linearly to zero at
 VT_ARSP_TRANS; the transition completes at VT_ARSP_TRANS, not before VT_TRANS_MIN_TM. The
-surfaces are live throughout both transitions (share 1; both attitude controllers hold the same
-level setpoint then): the wing's nose-down moment grows with airspeed, and with the elevator
-locked at neutral the rotors alone cannot trim it (the quadplane model pitched down 26 degrees
-and lost its height in the first flight that tried). Without an airspeed reading (VT_ARSP_TRANS needs one) the blend runs
+surfaces are live throughout both transitions (share 1; both attitude controllers then hold the
+same level setpoint): the pusher pitches the nose down (the quadplane's thrust line passes above
+its centre of gravity) and the wing trims with up elevator, so with the elevator locked at
+neutral the rotors alone would have to hold the nose up, their thrust already taken by the
+weight. Without an airspeed reading (VT_ARSP_TRANS needs one) the blend runs
 on time instead, over VT_F_TRANS_DUR, as PX4 does when airspeed is disabled. Back transition:
 pusher off, the rotors' share ramps back to one over VT_B_TRANS_RAMP, and the vehicle is a
 multicopter again after VT_B_TRANS_DUR, when the surfaces are released.
