@@ -18,6 +18,7 @@ from tests.flight.test_commander import HOME, Rig, _fly_in
 from tests.flight.test_land_detector_fw import G, FwBench
 from tests.flight.test_navigator import (
     MISSION,
+    SP_LAND,
     SP_POSITION,
     SP_TAKEOFF,
     _store,
@@ -186,3 +187,31 @@ def test_commander_transition_asks_for_the_other_flight_mode() -> None:
     quad = Rig(params={"MAV_TYPE": 2})
     quad.run(0.3)
     assert quad.system.modules.get("commander").custom_command(["transition"]) == 1
+
+
+def test_a_land_item_on_the_wing_transitions_back_first() -> None:
+    """PX4's VTOL land: no approach and flare as a plane, the back transition and then a
+    multicopter's landing at the item."""
+    rig = nav_rig(NAV_ACC_RAD=15.0)
+    rig.set("vehicle_status", vehicle_type=FIXED_WING, is_vtol=True)
+    cmds = rig.sub("vehicle_command")
+    store = _store(rig)
+    store.store_mission([_item(store, 16, 300, 0, 30.0), _item(store, 21, 0, 0, 0.0)])
+    rig.run(0.1)
+    at(rig, 200, 0, 30.0)
+    mode(rig, MISSION)
+    at(rig, 295, 0, 30.0)
+    assert rig.last("mission_result").seq_reached == 0
+    cmd = cmds.update()
+    assert cmd is not None and (cmd.command, cmd.param1) == (3000, MC)
+    assert current(rig).type == SP_POSITION                  # not a plane's LAND setpoint
+    rig.set("vehicle_status", vehicle_type=ROTARY_WING, in_transition_mode=True)
+    at(rig, 330, 0, 30.0)
+    assert current(rig).type == SP_POSITION
+    rig.set("vehicle_status", in_transition_mode=False)
+    at(rig, 340, 0, 30.0)                 # a multicopter: to the land point at its altitude
+    sp = current(rig)
+    assert sp.type == SP_POSITION and distance_m(sp.lat, sp.lon, HOME[0], HOME[1]) < 0.1
+    assert sp.alt == pytest.approx(HOME[2] + 30.0, abs=0.5)
+    at(rig, 2, 0, 30.0)
+    assert current(rig).type == SP_LAND

@@ -58,6 +58,7 @@ CMD_RTL: Final = 20
 P_TAKEOFF_FIRST, P_ITEM, P_MOVE_TO_LAND, P_LAND, P_HOLD, P_DONE, P_TRANSITION = range(7)
 DO_VTOL_TRANSITION: Final = 3000
 VTOL_STATE_FW: Final = 4
+VTOL_STATE_MC: Final = 3.0
 
 
 DO_CHANGE_SPEED: Final = 178
@@ -77,6 +78,7 @@ class MissionMode(NavMode):
         self.reached_at_us: int | None = None
         self.mission_id = 0
         self._to_fw = False      # the transition item's target: fixed wing (else multicopter)
+        self._then_same_item = False  # a VTOL's land item waits for its back transition
 
     # -- mission (re)load -------------------------------------------------------------------
 
@@ -239,6 +241,17 @@ class MissionMode(NavMode):
             nav.send_command(CMD_RTL)
             self.phase = P_DONE
             return
+        if cmd == LAND and nav.is_vtol() and nav.fixed_wing():
+            # PX4's VTOL land: back to multicopter first, then this item as a vertical landing
+            self._then_same_item = True
+            self._to_fw = False
+            nav.send_command(DO_VTOL_TRANSITION, VTOL_STATE_MC)
+            cur = nav.triplet.current
+            nav.set_current(SP_POSITION, pos[0], pos[1], cur.alt if cur.valid else pos[2],
+                            nav.heading())
+            self.phase = P_TRANSITION
+            self.publish_result()
+            return
         if cmd == DO_VTOL_TRANSITION and nav.is_vtol():
             # PX4 keeps a DO item's param1 in mission_item.params[0], which is time_inside
             self._to_fw = int(round(item.time_inside)) == VTOL_STATE_FW
@@ -337,8 +350,11 @@ class MissionMode(NavMode):
             alt_ok = pos[2] >= cur.alt - nav.alt_acc()
         if self.phase == P_TRANSITION:
             if nav.vtol_state_is(self._to_fw):
-                self.seq_reached = self.index
-                self.index += 1
+                if self._then_same_item:      # a land item's back transition is over
+                    self._then_same_item = False
+                else:
+                    self.seq_reached = self.index
+                    self.index += 1
                 self._start_item()
             return
         if self.phase == P_TAKEOFF_FIRST:
