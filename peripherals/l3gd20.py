@@ -40,7 +40,6 @@ from peripherals.st_spi import (
     SampleChannel,
     StSpiTarget,
     check_rotation,
-    rotate,
     to_int16,
 )
 
@@ -190,13 +189,8 @@ class L3gd20(StSpiTarget):
             raw = (32767, 32767, 32767)
         else:
             env = self.env
-            err = self.errors
-            err.extra_bias = faults.bias_step
-            nz = faults.noise
-            err.extra_sigma = nz.get("gyro", 0.0) if nz else 0.0
-            rot = self.rotation
-            w = err.apply(t_ns, env.gyro_rad_s if rot is None else rotate(rot, env.gyro_rad_s),
-                          self.ch.odr_mhz / 1000, env.board_temperature_c)
+            w = self._sense(self.errors, "gyro", env.gyro_rad_s, t_ns, self.ch.odr_mhz / 1000,
+                            env.board_temperature_c)
             fs = (self.regs.values[CTRL_REG4] & CTRL_REG4_FS) >> CTRL_REG4_FS_LSB
             lsb = SENSITIVITY_MDPS[fs] * 1e-3 * _DPS
             raw = (to_int16(w[0] / lsb), to_int16(w[1] / lsb), to_int16(w[2] / lsb))

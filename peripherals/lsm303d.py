@@ -42,7 +42,6 @@ from peripherals.st_spi import (
     SampleChannel,
     StSpiTarget,
     check_rotation,
-    rotate,
     to_int16,
 )
 
@@ -268,15 +267,11 @@ class Lsm303d(StSpiTarget):
         if faults.saturate:
             raw = (32767, 32767, 32767)
         else:
-            env, err = self.env, self.accel_errors
+            env = self.env
             ctrl2 = self.regs.values[CTRL2]
             bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> CTRL2_ABW_LSB])
-            err.extra_bias = faults.bias_step
-            nz = faults.noise
-            err.extra_sigma = nz.get("accel", 0.0) if nz else 0.0
-            rot = self.rotation
-            a = err.apply(t_ns, env.accel_m_s2 if rot is None else rotate(rot, env.accel_m_s2),
-                          2.0 * bw, env.board_temperature_c)
+            a = self._sense(self.accel_errors, "accel", env.accel_m_s2, t_ns, 2.0 * bw,
+                            env.board_temperature_c)
             afs = (ctrl2 & CTRL2_AFS) >> CTRL2_AFS_LSB
             lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0
             raw = (to_int16(a[0] / lsb), to_int16(a[1] / lsb), to_int16(a[2] / lsb))
@@ -294,13 +289,10 @@ class Lsm303d(StSpiTarget):
         if faults.saturate:
             raw = (32767, 32767, 32767)
         else:
-            env, err = self.env, self.mag_errors
-            err.extra_bias = faults.bias_step
-            nz = faults.noise
-            err.extra_sigma = nz.get("mag", 0.0) if nz else 0.0
-            err.noise_scale = 1.0 if regs.get("CTRL5.M_RES") == 3 else 2.0
-            b = err.apply(t_ns, rotate(self.rotation, env.mag_gauss), self.mag.odr_mhz / 1000,
-                          env.board_temperature_c)
+            env = self.env
+            self.mag_errors.noise_scale = 1.0 if regs.get("CTRL5.M_RES") == 3 else 2.0
+            b = self._sense(self.mag_errors, "mag", env.mag_gauss, t_ns, self.mag.odr_mhz / 1000,
+                            env.board_temperature_c)
             lsb = MAG_MGAUSS_LSB[regs.get("CTRL6.MFS")] * 1e-3
             v = regs.values
             off = [_s16(v[OFFSET_X_L_M + 2 * j], v[OFFSET_X_L_M + 1 + 2 * j]) for j in range(3)]

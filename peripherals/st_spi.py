@@ -43,6 +43,7 @@ from board.gpio import Pin
 from board.kernel import PRIO_HW, Event, Kernel
 from board.spi import SpiTarget
 from firmware.lib.rotation import board_to_sensor
+from peripherals.errors import ImuErrorModel
 from peripherals.faults import FaultState
 from peripherals.regs import RegisterFile
 
@@ -356,6 +357,8 @@ class StSpiTarget(SpiTarget):
         self._boot_event: Event | None = None
         self._warned: set[str] = set()
         self.regs: RegisterFile
+        #: How the die sits on the board (board->sensor matrix; None: aligned).
+        self.rotation: Matrix3 | None = None
         #: Output blocks a burst read serves in one call: address -> (first address of the
         #: block, last address, channel). Subclasses fill it for the registers whose read hook
         #: is their channel's ``read_byte`` (see :meth:`_burst_read`).
@@ -468,6 +471,21 @@ class StSpiTarget(SpiTarget):
         if faults.random_data and addr in self._data_addrs:
             return int(self.rng.integers(0, 256))
         return value
+
+    # -- physics --------------------------------------------------------------------------------
+
+    def _sense(self, err: ImuErrorModel, kind: str, truth: Vec3, t_ns: int, rate_hz: float,
+               temperature_c: float) -> Vec3:
+        """What one sensing element reads before quantisation, in SI units: ``truth`` (board
+        axes) in the die's axes, through its error model with the faults' bias step and the
+        extra noise they set for ``kind`` (``"gyro"``, ``"accel"``, ``"mag"``)."""
+        faults = self.faults
+        err.extra_bias = faults.bias_step
+        nz = faults.noise
+        err.extra_sigma = nz.get(kind, 0.0) if nz else 0.0
+        rot = self.rotation
+        return err.apply(t_ns, truth if rot is None else rotate(rot, truth), rate_hz,
+                         temperature_c)
 
     # -- timing helpers -------------------------------------------------------------------------
 
