@@ -24,7 +24,26 @@ maximum) puts the throttle at maximum and the pitch on speed only; climb-out (a 
 error, or the caller's takeoff) flies full throttle and pitch on speed only at the minimum
 airspeed, with a minimum pitch: the steepest climb the aircraft has.
 Without a valid airspeed (``airspeed_valid = False``) the speed is taken as ``FW_AIRSPD_TRIM``
-and the pitch controls height only (PX4's airspeed-less mode).
+and TECS flies PX4's airspeed-less mode (PX4 ``TECSControl``: the speed weight is 0, underspeed
+is not detected, the throttle integrator is frozen and only a positive one is still added): the
+pitch controls height only and the throttle is ``FW_THR_CRUISE`` plus the feed-forward of the
+height rate demand and its damping, so no loop depends on the speed it cannot see. A negative
+throttle integrator (wound up while the airspeed still read too high or too low) is dropped at
+the switch, and the pitch integrator alone never asks for more than the pitch limits: a height
+error that the cruise throttle cannot fly off must not walk the nose up to the stall.
+
+A measured airspeed the aircraft's own acceleration cannot explain is not used either: each
+sample further than ``TAS_INNOV_GATE_M_S`` from the complementary filter's prediction (a pitot
+that blocks reads 0 within a few hundred milliseconds while the airframe does not decelerate)
+is rejected, the filter dead-reckons on the longitudinal acceleration and TECS flies that step
+as without airspeed, for up to ``TAS_GATE_TIMEOUT_S``; a difference that persists longer is
+taken as real and the filter restarts on the measurement. The airspeed module's validator
+(ASPD_FS_T_STOP) declares such a pitot invalid within that time, so a blocked pitot still
+counted as valid never reaches the underspeed logic, which would otherwise dive at the pitch
+limit to "regain" a speed the aircraft has not lost. (PX4 reaches the same end in its airspeed
+selector: a load factor the measured airspeed cannot carry together with the innovation check
+invalidates the airspeed at once; this TECS keeps its own guard because this stack's
+validator has only the ground speed check.)
 
 Pure computation on floats, no uORB or parameters: fw_pos_control_l1 hands it the estimator's
 state and its setpoints; tests/firmware/fw/test_tecs.py flies a point-mass energy model with it.
@@ -36,9 +55,14 @@ import math
 from dataclasses import dataclass
 from typing import Final
 
-__all__ = ["Tecs", "TecsParams", "TecsStatus"]
+__all__ = ["TAS_GATE_TIMEOUT_S", "TAS_INNOV_GATE_M_S", "Tecs", "TecsParams", "TecsStatus"]
 
 G: Final = 9.80665
+#: an airspeed sample this far from the filter's acceleration-based prediction is implausible
+#: (the same figure as ASPD_FS_INNOV's default: more than gust and sensor noise)
+TAS_INNOV_GATE_M_S: Final = 5.0
+#: the longest the filter dead-reckons past implausible samples before believing them
+TAS_GATE_TIMEOUT_S: Final = 3.0
 
 
 @dataclass
@@ -88,6 +112,7 @@ class TecsStatus:
     underspeed: bool = False
     climbout: bool = False
     airspeed_valid: bool = True
+    airspeed_gated: bool = False
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:
@@ -118,24 +143,43 @@ class Tecs:
         self.underspeed = False
         self.throttle_sp = 0.0
         self.pitch_sp = 0.0
+        self.gated_s = 0.0              # how long samples have been rejected in a row
+        self.gated = False              # this step's sample was rejected
+        self.used_airspeed = True       # the last step flew on a measured airspeed
 
     # -- state estimates ---------------------------------------------------------------------------
 
     def _update_airspeed(self, dt: float, tas: float, accel_x: float, valid: bool,
                          eas2tas: float) -> None:
         """Complementary filter of true airspeed and longitudinal acceleration (less noise and
-        lag than either alone; crossover ``FW_T_SPD_OMEGA``)."""
+        lag than either alone; crossover ``FW_T_SPD_OMEGA``), with the innovation gate of the
+        module doc: :attr:`gated` says this step's sample was rejected."""
         p = self.p
+        self.gated = False
         if not valid or not math.isfinite(tas):
             self.tas_state = p.airspeed_trim_m_s * eas2tas
             self.tas_rate_state = 0.0
+            self.gated_s = 0.0
             return
         if not self.initialised:
             self.tas_state = max(tas, 0.0)
             self.tas_rate_state = 0.0
             return
-        w = p.spd_omega
         err = tas - self.tas_state
+        if abs(err) > TAS_INNOV_GATE_M_S:
+            if self.gated_s < TAS_GATE_TIMEOUT_S:
+                # implausible: the speed follows the aircraft's own acceleration only
+                self.gated_s += dt
+                self.gated = True
+                self.tas_state = max(self.tas_state + (self.tas_rate_state + accel_x) * dt, 0.0)
+                return
+            # persisted past the timeout: believed, the filter restarts on it
+            self.tas_state = max(tas, 0.0)
+            self.tas_rate_state = 0.0
+            self.gated_s = 0.0
+            return
+        self.gated_s = 0.0
+        w = p.spd_omega
         self.tas_rate_state += err * w * w * dt
         self.tas_state = max(self.tas_state + (err * 2.0 * w + self.tas_rate_state + accel_x)
                              * dt, 0.0)
@@ -161,9 +205,20 @@ class Tecs:
         dt = _clamp(dt, 0.001, 0.2)
         k = eas2tas if math.isfinite(eas2tas) and 0.5 < eas2tas < 2.0 else 1.0
         self._update_airspeed(dt, tas_m_s, accel_x_m_s2, airspeed_valid, k)
+        # fly on the measured airspeed only while it is valid and plausible
+        measured = airspeed_valid and not self.gated
+        if self.initialised and self.used_airspeed and not measured:
+            # into airspeed-less flight: the throttle integrator is frozen from here on, and a
+            # negative one (wound up against a false airspeed) would hold the throttle below
+            # cruise, so it goes (PX4 adds only a positive integrator without airspeed)
+            self.throttle_integ = max(self.throttle_integ, 0.0)
+        if self.initialised and not self.used_airspeed and measured:
+            # back on the airspeed: the speed demand restarts from the speed flown
+            self.tas_sp_adj = self.tas_state
+        self.used_airspeed = measured
         if not self.initialised:
             self.hgt_sp_adj = self.hgt_sp_adj_prev = altitude_m
-            self.tas_sp_adj = self.tas_state if airspeed_valid else p.airspeed_trim_m_s * k
+            self.tas_sp_adj = self.tas_state if measured else p.airspeed_trim_m_s * k
             self.last_pitch_sp = pitch_rad
             self.last_throttle = throttle_cruise
             self.throttle_integ = 0.0
@@ -179,8 +234,8 @@ class Tecs:
                         v_min, v_max)
         if climbout:
             tas_sp = v_min
-        if not airspeed_valid:
-            tas_sp = p.airspeed_trim_m_s * k
+        if not measured:
+            tas_sp = self.tas_state if airspeed_valid else p.airspeed_trim_m_s * k
         vel_rate_max = 0.5 * ste_rate_max / tas
         vel_rate_min = 0.5 * ste_rate_min / tas
         self.tas_sp_adj = _clamp(tas_sp, self.tas_sp_adj + vel_rate_min * dt,
@@ -205,10 +260,9 @@ class Tecs:
                              + p.hgt_rate_ff * ramp_rate, -p.sink_max_m_s, p.climb_max_m_s)
 
         # underspeed: not enough energy to keep flying at any pitch
-        self.underspeed = (airspeed_valid and self.tas_state < 0.9 * v_min
+        # (PX4: only with an airspeed; here also only with a plausible one)
+        self.underspeed = (measured and self.tas_state < 0.9 * v_min
                            and self.last_throttle >= 0.95 * throttle_max)
-        if airspeed_valid and self.tas_state > v_min:
-            self.underspeed = False
 
         # energies and their rates
         spe_sp, spe = G * self.hgt_sp_adj, G * altitude_m
@@ -218,15 +272,15 @@ class Tecs:
 
         # weights: 0 = height only, 2 = speed only
         sw = _clamp(speed_weight if speed_weight is not None else p.speed_weight, 0.0, 2.0)
-        if not airspeed_valid:
+        if not measured:
             sw = 0.0
-        if self.underspeed or (climbout and airspeed_valid):
+        if self.underspeed or (climbout and measured):
             sw = 2.0     # pitch on speed only: climb as steeply as the minimum speed allows
         w_spe, w_ske = min(2.0 - sw, 1.0), min(sw, 1.0)
 
         self._throttle(dt, spe_sp + ske_sp - spe - ske, spe_rate_sp + ske_rate_sp,
                        spe_rate + ske_rate, ste_rate_max, ste_rate_min, roll_rad,
-                       throttle_min, throttle_max, throttle_cruise, climbout)
+                       throttle_min, throttle_max, throttle_cruise, climbout, measured)
         self._pitch(dt, w_spe * spe_sp - w_ske * ske_sp - (w_spe * spe - w_ske * ske),
                     w_spe * spe_rate_sp - w_ske * ske_rate_sp,
                     w_spe * spe_rate - w_ske * ske_rate, tas, pitch_min_rad, pitch_max_rad,
@@ -240,10 +294,11 @@ class Tecs:
         s.throttle_integ, s.pitch_integ = self.throttle_integ, self.pitch_integ
         s.throttle_sp, s.pitch_sp_rad = self.throttle_sp, self.pitch_sp
         s.underspeed, s.climbout, s.airspeed_valid = self.underspeed, climbout, airspeed_valid
+        s.airspeed_gated = self.gated
 
     def _throttle(self, dt: float, ste_error: float, ste_rate_sp: float, ste_rate: float,
                   ste_rate_max: float, ste_rate_min: float, roll: float, thr_min: float,
-                  thr_max: float, thr_cruise: float, climbout: bool) -> None:
+                  thr_max: float, thr_cruise: float, climbout: bool, measured: bool) -> None:
         p = self.p
         s = self.status
         # the extra drag of a banked turn (load factor - 1) wants more total energy rate
@@ -262,10 +317,13 @@ class Tecs:
             else:
                 ff = thr_cruise + ste_rate_sp / ste_rate_min * (thr_min - thr_cruise)
             unc = (ste_error + ste_rate_error * p.throttle_damp) * k + ff
-            # integrator bounded by the room the P and feed-forward terms leave (PX4's limits)
-            integ = self.throttle_integ + ste_error * p.integ_gain * dt * k
-            self.throttle_integ = _clamp(integ, thr_min - unc, max(thr_max - unc,
-                                                                   thr_min - unc))
+            if measured:
+                # integrator bounded by the room the P and feed-forward terms leave (PX4's)
+                integ = self.throttle_integ + ste_error * p.integ_gain * dt * k
+                self.throttle_integ = _clamp(integ, thr_min - unc, max(thr_max - unc,
+                                                                       thr_min - unc))
+            # without airspeed the integrator is frozen (PX4 TECSControl): the throttle is the
+            # cruise throttle and the height's feed-forward and feedback, nothing that winds up
             thr = unc + self.throttle_integ
         self.throttle_sp = _clamp(thr, thr_min, thr_max)
         self.last_throttle = self.throttle_sp
@@ -279,6 +337,7 @@ class Tecs:
         s.seb_error, s.seb_rate_error = seb_error, seb_rate_error
         tc = max(p.time_const_s, 0.1)
         gain_inv = tas * tc * G           # SEB per radian of pitch over one time constant
+        integ_lo, integ_hi = pitch_min * gain_inv, pitch_max * gain_inv
         if climbout:
             pitch_min = max(pitch_min, min(climbout_pitch_min, pitch_max))
         correction = seb_error + seb_rate_error * p.pitch_damp + seb_rate_sp * tc
@@ -289,7 +348,9 @@ class Tecs:
             integ = min(integ, max(self.pitch_integ, pitch_max * gain_inv - correction))
         elif unc < pitch_min:
             integ = max(integ, min(self.pitch_integ, pitch_min * gain_inv - correction))
-        self.pitch_integ = integ
+        # and alone it never asks for more than the pitch limits
+        self.pitch_integ = _clamp(integ, integ_lo, integ_hi)
+        integ = self.pitch_integ
         pitch = _clamp((correction + integ) / gain_inv, pitch_min, pitch_max)
         # pitch rate limit from the vertical acceleration limit
         d = p.vert_accel_max_m_s2 / tas * dt
