@@ -182,12 +182,8 @@ class L3gd20(StSpiTarget):
         return self.ch.odr_mhz / 1000
 
     def _sample(self, t_ns: int) -> tuple[int, int, int]:
-        faults = self.faults
-        if faults.frozen and self._last_raw is not None:
-            return self._last_raw
-        if faults.saturate:
-            raw = (32767, 32767, 32767)
-        else:
+        raw = self._faulted(self._last_raw)
+        if raw is None:
             env = self.env
             w = self._sense(self.errors, "gyro", env.gyro_rad_s, t_ns, self.ch.odr_mhz / 1000,
                             env.board_temperature_c)

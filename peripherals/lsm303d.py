@@ -261,12 +261,8 @@ class Lsm303d(StSpiTarget):
         return self.mag.odr_mhz / 1000
 
     def _sample_accel(self, t_ns: int) -> tuple[int, int, int]:
-        faults = self.faults
-        if faults.frozen and self._last_accel is not None:
-            return self._last_accel
-        if faults.saturate:
-            raw = (32767, 32767, 32767)
-        else:
+        raw = self._faulted(self._last_accel)
+        if raw is None:
             env = self.env
             ctrl2 = self.regs.values[CTRL2]
             bw = min(self.accel.odr_mhz / 2000, ACCEL_ABW_HZ[ctrl2 >> CTRL2_ABW_LSB])
@@ -284,11 +280,8 @@ class Lsm303d(StSpiTarget):
             t = round((self.env.board_temperature_c - 25.0) * 8.0)
             self._temp_raw = max(-2048, min(2047, t)) & 0xFFFF
         powered = regs.get("CTRL7.MD") in (0, 1) and not regs.get("CTRL7.T_ONLY")
-        if (faults.frozen or not powered) and self._last_mag is not None:
-            return self._last_mag
-        if faults.saturate:
-            raw = (32767, 32767, 32767)
-        else:
+        raw = self._faulted(self._last_mag, hold=not powered)
+        if raw is None:
             env = self.env
             self.mag_errors.noise_scale = 1.0 if regs.get("CTRL5.M_RES") == 3 else 2.0
             b = self._sense(self.mag_errors, "mag", env.mag_gauss, t_ns, self.mag.odr_mhz / 1000,

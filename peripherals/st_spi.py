@@ -93,6 +93,9 @@ OUT_LAST: Final = 0x2D
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
                 tuple[float, float, float]]
 Vec3 = tuple[float, float, float]
+Raw3 = tuple[int, int, int]
+#: What a saturated axis reads: the positive rail.
+RAILS: Final[Raw3] = (32767, 32767, 32767)
 
 
 def check_rotation(rotation: int | str | Sequence[Sequence[float]] | None) -> Matrix3 | None:
@@ -473,6 +476,16 @@ class StSpiTarget(SpiTarget):
         return value
 
     # -- physics --------------------------------------------------------------------------------
+
+    def _faulted(self, last: Raw3 | None, hold: bool = False) -> Raw3 | None:
+        """The sample the faults make, if they make it: the last one while frozen (or while
+        ``hold``: a sensing element that is off), the rails while saturated; None: measure."""
+        faults = self.faults
+        if (faults.frozen or hold) and last is not None:
+            return last
+        if faults.saturate:
+            return RAILS
+        return None
 
     def _sense(self, err: ImuErrorModel, kind: str, truth: Vec3, t_ns: int, rate_hz: float,
                temperature_c: float) -> Vec3:
