@@ -12,7 +12,7 @@ import math
 
 import pytest
 
-from firmware.lib.tecs import G, Tecs, TecsParams
+from firmware.lib.tecs import TAS_GATE_TIMEOUT_S, G, Tecs, TecsParams
 
 MASS_KG = 2.0
 THRUST_MAX_N = 20.0
@@ -148,3 +148,90 @@ def test_airspeed_setpoint_and_limits_are_equivalent_airspeeds():
         pm.step(tecs.throttle_sp, tecs.pitch_sp, 0.02)
     assert pm.v == pytest.approx(16.5, abs=0.3)
     assert tecs.status.tas_sp_m_s == pytest.approx(16.5)
+
+
+def _step(tecs: Tecs, pm: PointMass, tas: float, valid: bool, h_sp: float = 100.0,
+          dt: float = 0.02) -> None:
+    """One TECS step fed ``tas`` as the measured airspeed (a sensor fault), then the model."""
+    tecs.update(dt, altitude_m=pm.h, height_rate_m_s=pm.vz_up, tas_m_s=tas,
+                airspeed_valid=valid, accel_x_m_s2=pm.accel_x, pitch_rad=pm.pitch,
+                roll_rad=0.0, hgt_sp_m=h_sp, tas_sp_m_s=15.0, throttle_min=0.0,
+                throttle_max=1.0, throttle_cruise=0.5, pitch_min_rad=math.radians(-45),
+                pitch_max_rad=math.radians(30), climbout_pitch_min_rad=0.0)
+    pm.step(tecs.throttle_sp, tecs.pitch_sp, dt)
+
+
+def test_blocked_pitot_still_valid_is_not_flown_into_an_underspeed_dive():
+    """The fw_airspeed_blocked_cruise failure: the pitot reads 0 (through the sensor's filter,
+    ~0.4 s) while still declared valid for ASPD_FS_T_STOP. Before the gate TECS saw an
+    underspeed and dived at the pitch limit; now it rejects samples the airframe's
+    acceleration cannot explain and holds its height until the validator fails the sensor."""
+    tecs, pm = Tecs(), PointMass(h=100.0, v=15.0)
+    _fly(tecs, pm, 20.0, 100.0, 15.0)
+    pitches, gated = [], []
+    for i in range(100):                      # 2 s "valid", the reading falls to 0 in 0.4 s
+        _step(tecs, pm, max(15.0 * (1.0 - i / 20.0), 0.0), True)
+        pitches.append(tecs.pitch_sp)
+        gated.append(tecs.status.airspeed_gated)
+        assert not tecs.underspeed
+    assert any(gated) and gated[-1]
+    assert min(pitches) > math.radians(-5.0)
+    assert abs(pm.h - 100.0) < 2.0 and pm.v > 13.0
+    for _ in range(50):                       # the validator: invalid
+        _step(tecs, pm, 0.0, False)
+    assert not tecs.status.airspeed_gated and tecs.status.airspeed_valid is False
+
+
+def test_airspeed_less_flight_does_not_wind_up_after_a_false_airspeed():
+    """A throttle integrator wound negative against a false airspeed reading held the throttle
+    below cruise after the switch; the pitch integrator then walked the nose up to the stall
+    (the old fw_airspeed_blocked_cruise, ~20 s after). Without airspeed the integrator is
+    frozen and a negative one dropped: minutes of airspeed-less flight hold height and speed."""
+    tecs, pm = Tecs(), PointMass(h=100.0, v=15.0)
+    _fly(tecs, pm, 20.0, 100.0, 15.0)
+    tecs.throttle_integ = -0.4                 # wound up while the reading was too high
+    _step(tecs, pm, pm.v, True)
+    heights, speeds, integ = [], [], []
+    for _ in range(round(300.0 / 0.02)):
+        _step(tecs, pm, math.nan, False, h_sp=102.0)
+        heights.append(pm.h)
+        speeds.append(pm.v)
+        integ.append(tecs.pitch_integ)
+    assert tecs.throttle_integ == 0.0
+    assert all(abs(h - 102.0) < 1.0 for h in heights[-10000:])   # the last 200 s
+    assert min(speeds) > 12.0 and max(speeds) < 19.0
+    # bounded and settled: the last 200 s move the pitch integrator by less than 2 %
+    late = integ[-10000:]
+    assert max(late) - min(late) < 0.02 * max(abs(x) for x in late) + 1.0
+
+
+def test_pitch_integrator_alone_never_exceeds_the_pitch_limits():
+    """An integrator carried from another speed or phase (its SEB units scale with the
+    airspeed) is cut to what the pitch limits allow at the next step, not unwound slowly."""
+    tecs = Tecs()
+    kw = dict(altitude_m=100.0, height_rate_m_s=0.0, tas_m_s=15.0, airspeed_valid=False,
+              accel_x_m_s2=0.0, pitch_rad=0.0, roll_rad=0.0, hgt_sp_m=100.0, tas_sp_m_s=15.0,
+              throttle_min=0.0, throttle_max=1.0, throttle_cruise=0.5, pitch_min_rad=-0.3,
+              pitch_max_rad=0.3)
+    tecs.update(0.02, **kw)
+    gain_inv = TecsParams().airspeed_trim_m_s * TecsParams().time_const_s * G
+    tecs.pitch_integ = 10.0 * gain_inv          # ten radians' worth
+    tecs.update(0.02, **kw)
+    assert tecs.pitch_integ <= 0.3 * gain_inv + 1e-6
+    tecs.pitch_integ = -10.0 * gain_inv
+    tecs.update(0.02, **kw)
+    assert tecs.pitch_integ >= -0.3 * gain_inv - 1e-6
+
+
+def test_a_lasting_airspeed_difference_is_believed_after_the_gate_timeout():
+    """The gate only bridges the validator's delay: a difference that lasts (a real step the
+    acceleration missed) is taken after TAS_GATE_TIMEOUT_S, not ignored for ever."""
+    tecs, pm = Tecs(), PointMass(h=100.0, v=15.0)
+    _fly(tecs, pm, 10.0, 100.0, 15.0)
+    flags = []
+    for _ in range(round((TAS_GATE_TIMEOUT_S + 1.0) / 0.02)):
+        _step(tecs, pm, pm.v + 8.0, True)
+        flags.append(tecs.status.airspeed_gated)
+    n_gated = round(TAS_GATE_TIMEOUT_S / 0.02)
+    assert all(flags[:n_gated - 1]) and not any(flags[n_gated + 2:])
+    assert abs(tecs.tas_state - (pm.v + 8.0)) < 1.0
