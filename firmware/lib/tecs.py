@@ -127,6 +127,9 @@ class Tecs:
     def __init__(self, params: TecsParams | None = None) -> None:
         self.p = params if params is not None else TecsParams()
         self.status = TecsStatus()
+        #: airspeed samples the gate rejected since start (not cleared by reset: a count for
+        #: the module's status, so a pitot that misbehaves is visible after the fact)
+        self.gated_samples = 0
         self.reset()
 
     def reset(self) -> None:
@@ -171,6 +174,7 @@ class Tecs:
                 # implausible: the speed follows the aircraft's own acceleration only
                 self.gated_s += dt
                 self.gated = True
+                self.gated_samples += 1
                 self.tas_state = max(self.tas_state + (self.tas_rate_state + accel_x) * dt, 0.0)
                 return
             # persisted past the timeout: believed, the filter restarts on it

@@ -585,7 +585,8 @@ class FwPosControlL1Module(WorkItemModule):
                  CTRL_POSITION: "position"}
         m = self.att_sp
         return [f"control {names.get(self.ctrl, '?')} armed {self.armed} landed {self.landed} "
-                f"airspeed {'valid' if self.airspeed.valid else 'invalid'}",
+                f"airspeed {'valid' if self.airspeed.valid else 'invalid'}, "
+                f"{self.tecs.gated_samples} samples rejected by TECS as implausible",
                 (f"setpoint roll {math.degrees(m.roll_body):+.1f} deg pitch "
                  f"{math.degrees(m.pitch_body):+.1f} deg throttle {m.thrust_body[0]:.2f}"),
                 (f"L1 distance {self.l1.l1_distance_m:.1f} m xtrack "
