@@ -234,7 +234,12 @@ def _extended_sys_state(inst: MavlinkInstance) -> Any:
             state = mav.MAV_LANDED_STATE_TAKEOFF
         elif st.nav_state in (12, 18, 20) and not land.landed:
             state = mav.MAV_LANDED_STATE_LANDING
-    return mav.MAVLink_extended_sys_state_message(mav.MAV_VTOL_STATE_UNDEFINED, state)
+    vtol_state = mav.MAV_VTOL_STATE_UNDEFINED
+    if st is not None and st.is_vtol:  # PX4: vtol_vehicle_status's state (the same numbers)
+        vs = inst.latest("vtol_vehicle_status")
+        if vs is not None:
+            vtol_state = int(vs.vehicle_vtol_state)
+    return mav.MAVLink_extended_sys_state_message(vtol_state, state)
 
 
 def _home(inst: MavlinkInstance) -> Any:

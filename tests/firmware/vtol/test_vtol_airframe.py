@@ -49,3 +49,13 @@ def test_aux_wires_only_for_the_channels_a_model_uses():
     assert added == FMU_AUX_WIRES[:4]
     assert [(w.src, w.dst) for w in added] == [(("fmu", f"aux{i}"), (WORLD, f"aux{i}"))
                                               for i in range(1, 5)]
+
+
+def test_extended_sys_state_reports_the_vtol_state(board):
+    """PX4 fills EXTENDED_SYS_STATE.vtol_state from vtol_vehicle_status (a ground station's
+    VTOL indicator); MAV_VTOL_STATE uses the same numbers."""
+    from firmware.modules.mavlink.streams import _extended_sys_state
+
+    inst = board.system.modules.get("mavlink").instances[0]
+    msg = _extended_sys_state(inst)
+    assert msg.vtol_state == 3                             # MAV_VTOL_STATE_MC
