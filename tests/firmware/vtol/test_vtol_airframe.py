@@ -59,3 +59,17 @@ def test_extended_sys_state_reports_the_vtol_state(board):
     inst = board.system.modules.get("mavlink").instances[0]
     msg = _extended_sys_state(inst)
     assert msg.vtol_state == 3                             # MAV_VTOL_STATE_MC
+
+
+def test_hil_names_the_vtol_and_its_mission():
+    from hil.airframes import resolve
+    from hil.missions import mission_for
+
+    frame = resolve("vtol")
+    assert (frame.id, frame.vehicle_class, frame.host.world_model) == (13000, "vtol", "quadplane")
+    assert resolve("quadplane") == frame and resolve("Generic Standard VTOL") == frame
+    mission = mission_for("vtol")
+    cmds = [it.cmd for it in mission.plan]
+    assert cmds == [22, 3000, 16, 16, 16, 16, 3000, 21]    # takeoff, to FW, square, to MC, land
+    assert [it.param1 for it in mission.plan if it.cmd == 3000] == [4.0, 3.0]
+    assert mission.plan[mission.first_waypoint_seq].cmd == 16
