@@ -41,9 +41,9 @@ taken as real and the filter restarts on the measurement. The airspeed module's 
 (ASPD_FS_T_STOP) declares such a pitot invalid within that time, so a blocked pitot still
 counted as valid never reaches the underspeed logic, which would otherwise dive at the pitch
 limit to "regain" a speed the aircraft has not lost. (PX4 reaches the same end in its airspeed
-selector: a load factor the measured airspeed cannot carry together with the innovation check
-invalidates the airspeed at once; this TECS keeps its own guard because this stack's
-validator has only the ground speed check.)
+selector when its load factor check is on, ASPD_DO_CHECKS bit 3: a load factor the measured
+airspeed cannot carry together with a failing innovation check invalidates the airspeed at
+once; the airspeed module here has it too, but PX4's default leaves it off, hence this guard.)
 
 Pure computation on floats, no uORB or parameters: fw_pos_control_l1 hands it the estimator's
 state and its setpoints; tests/firmware/fw/test_tecs.py flies a point-mass energy model with it.

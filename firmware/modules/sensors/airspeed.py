@@ -22,6 +22,17 @@ pitot that reads zero, or stays stuck while the vehicle speeds up. It is valid a
 ASPD_FS_T_START seconds without a failing sample. A reading too *high* for the ground speed
 is a headwind and never fails it.
 
+``ASPD_DO_CHECKS`` selects the checks as PX4's bitmask does (bit 1 data stuck, bit 2 the
+consistency check above, bit 3 the load factor check; the data-missing timeout always runs;
+PX4's default 7 leaves the load factor check off). The load factor check is PX4's
+``AirspeedValidator::check_load_factor``: in fixed-wing flight (armed, a fixed-wing vehicle
+type, not landed) the measured load factor ``|a_z| / g`` cannot exceed what the wing can lift
+at the measured airspeed, ``(CAS / ASPD_STALL)^2``; their ratio, filtered (0.95/0.05 per
+20 Hz run, PX4's rate), above 1.1 fails it. A pitot that blocks reads ~0 while the wing still
+carries 1 g: the ratio saturates at once. As in PX4's ``update_airspeed_valid_status``, the
+consistency and load factor checks failing *together* declare the airspeed invalid at once
+(a large fault is then likely), either one alone only after ASPD_FS_T_STOP.
+
 Nothing is advertised until the first ``differential_pressure`` sample arrives, so a board
 without an airspeed sensor (the quadrotor) publishes and logs exactly what it did before.
 A sensor that falls silent gets one more ``airspeed`` with confidence 0 every 100 ms (the
@@ -37,7 +48,8 @@ from typing import Any, Final
 from firmware.platform.params import ParamDef
 from firmware.platform.uorb import Publication, Subscription
 
-__all__ = ["AIRSPEED_PARAMS", "Airspeed", "AirspeedValidator", "ias_m_s", "tas_m_s"]
+__all__ = ["AIRSPEED_PARAMS", "Airspeed", "AirspeedValidator", "LoadFactorCheck", "ias_m_s",
+           "tas_m_s"]
 
 RHO0: Final = 1.225                   # kg/m^3, ISA sea level 15 degC
 R_AIR: Final = 287.1                  # J/(kg K), PX4's CONSTANTS_AIR_GAS_CONST
@@ -47,6 +59,13 @@ TIMEOUT_US: Final = 300_000           # PX4: _airspeed_validator.set_timeout(300
 EQUAL_VALUE_COUNT: Final = 100        # PX4: set_equal_value_threshold(100)
 ERROR_DENSITY_WINDOW: Final = 100.0   # PX4 DataValidator
 SILENT_REPUBLISH_US: Final = 100_000
+CHECK_DATA_STUCK: Final = 1 << 1      # ASPD_DO_CHECKS bits (PX4's)
+CHECK_INNOVATION: Final = 1 << 2
+CHECK_LOAD_FACTOR: Final = 1 << 3
+LOAD_FACTOR_PERIOD_S: Final = 0.05    # PX4 airspeed_selector's run period: its filter's unit
+G_LOAD: Final = 9.81                  # PX4's figure in check_load_factor
+VEHICLE_TYPE_FIXED_WING: Final = 2
+ARMING_STATE_ARMED: Final = 2
 
 _GROUP: Final = "Airspeed Validator"
 
@@ -69,6 +88,14 @@ AIRSPEED_PARAMS: Final[tuple[ParamDef, ...]] = (
              short="Airspeed failsafe stop delay",
              long="How long the consistency check must fail before the airspeed is declared "
                   "invalid (confidence 0).", decimals=1),
+    ParamDef("ASPD_DO_CHECKS", "INT32", 7, min=0, max=31, group=_GROUP,
+             short="Enable checks on airspeed sensors",
+             long="Bitmask of the checks that can declare the airspeed invalid: bit 0 data "
+                  "missing (always on), bit 1 data stuck, bit 2 consistency with the ground "
+                  "speed (ASPD_FS_INNOV), bit 3 load factor (the measured load factor more "
+                  "than the wing can lift at the measured airspeed, ASPD_STALL). The "
+                  "consistency and load factor checks failing together invalidate the "
+                  "airspeed at once."),
     ParamDef("ASPD_FS_T_START", "FLOAT", 10.0, min=0.0, max=1000.0, unit="s", group=_GROUP,
              short="Airspeed failsafe start delay",
              long="How long the consistency check must pass before an airspeed declared "
@@ -120,10 +147,31 @@ class AirspeedValidator:
     def timed_out(self, now_us: int) -> bool:
         return self.last_us == 0 or now_us - self.last_us > TIMEOUT_US
 
-    def confidence(self, now_us: int) -> float:
-        if self.timed_out(now_us) or self.stuck:
+    def confidence(self, now_us: int, stuck_check: bool = True) -> float:
+        if self.timed_out(now_us) or (self.stuck and stuck_check):
             return 0.0
         return 1.0 - self.error_density / ERROR_DENSITY_WINDOW
+
+
+class LoadFactorCheck:
+    """PX4's load factor check (module doc): :attr:`failed` while the filtered ratio of the
+    measured load factor to the most the wing lifts at the measured airspeed exceeds 1.1."""
+
+    def __init__(self) -> None:
+        self.ratio = 0.5
+        self.failed = False
+
+    def update(self, dt_s: float, cas_m_s: float, accel_z_m_s2: float, stall_m_s: float,
+               in_fixed_wing_flight: bool) -> None:
+        if not in_fixed_wing_flight or not math.isfinite(accel_z_m_s2):
+            self.ratio, self.failed = 0.5, False
+            return
+        max_lift_ratio = (max(cas_m_s, 0.7) / max(stall_m_s, 1.0)) ** 2
+        # PX4 filters 0.95/0.05 per 50 ms run; the same time constant at this sample rate
+        a = min(0.05 * max(dt_s, 0.0) / LOAD_FACTOR_PERIOD_S, 1.0)
+        ratio = (1.0 - a) * self.ratio + a * (abs(accel_z_m_s2) / G_LOAD) / max_lift_ratio
+        self.ratio = min(max(ratio, 0.25), 2.0)
+        self.failed = self.ratio > 1.1
 
 
 class Airspeed:
@@ -134,6 +182,9 @@ class Airspeed:
         self._dp = subscribe("differential_pressure")
         self._air = subscribe("vehicle_air_data")
         self._lpos = subscribe("vehicle_local_position")
+        self._accel = subscribe("vehicle_acceleration")
+        self._status = subscribe("vehicle_status")
+        self._land = subscribe("vehicle_land_detected")
         self._advertise = advertise
         self._pub: Publication | None = None
         self._msg = msg
@@ -142,6 +193,9 @@ class Airspeed:
         self.innov_m_s = 5.0
         self.t_stop_us = 2_000_000
         self.t_start_us = 10_000_000
+        self.checks = CHECK_DATA_STUCK | CHECK_INNOVATION
+        self.load_factor = LoadFactorCheck()
+        self._last_sample_us = 0
         self.consistent = True          # the consistency check's verdict
         self._fail_since = 0            # first failing sample of the current run of them
         self._pass_since = 0
@@ -156,6 +210,7 @@ class Airspeed:
         self.innov_m_s = float(get("ASPD_FS_INNOV"))
         self.t_stop_us = int(float(get("ASPD_FS_T_STOP")) * 1e6)
         self.t_start_us = int(float(get("ASPD_FS_T_START")) * 1e6)
+        self.checks = int(get("ASPD_DO_CHECKS"))
 
     def update(self, now: int) -> bool:
         """A new differential pressure sample, if any, into ``airspeed``: True if published."""
@@ -181,23 +236,40 @@ class Airspeed:
         if not (math.isfinite(ias) and math.isfinite(tas)):
             return False
         self.ias, self.tas, self.air_temperature_c = ias, tas, temp_c
+        dt_s = (now - self._last_sample_us) * 1e-6 if self._last_sample_us else 0.0
+        self._last_sample_us = now
+        self._check_load_factor(min(dt_s, 0.2), ias)
         self._check_consistency(now, tas)
-        conf = self.validator.confidence(now)
+        conf = self.validator.confidence(now, bool(self.checks & CHECK_DATA_STUCK))
         self.confidence = conf if self.consistent else 0.0
         self._publish(now)
         return True
 
+    def _check_load_factor(self, dt_s: float, cas_m_s: float) -> None:
+        if not self.checks & CHECK_LOAD_FACTOR:
+            self.load_factor.update(dt_s, cas_m_s, 0.0, self.stall_m_s, False)
+            return
+        st, land, acc = self._status.copy(), self._land.copy(), self._accel.copy()
+        in_fw = (st is not None and int(st.arming_state) == ARMING_STATE_ARMED
+                 and int(st.vehicle_type) == VEHICLE_TYPE_FIXED_WING
+                 and land is not None and not land.landed)
+        az = float(acc.xyz[2]) if acc is not None else math.nan
+        self.load_factor.update(dt_s, cas_m_s, az, self.stall_m_s, in_fw)
+
     def _check_consistency(self, now: int, tas: float) -> None:
         lpos = self._lpos.copy()
-        failing = False
-        if lpos is not None and lpos.v_xy_valid:
+        innovation = False
+        if self.checks & CHECK_INNOVATION and lpos is not None and lpos.v_xy_valid:
             ground = math.hypot(lpos.vx, lpos.vy)
-            failing = ground > self.stall_m_s and ground - tas > self.innov_m_s
-        if failing:
+            innovation = ground > self.stall_m_s and ground - tas > self.innov_m_s
+        load = self.load_factor.failed
+        if innovation or load:
             self._pass_since = 0
             if not self._fail_since:
                 self._fail_since = now
-            if self.consistent and now - self._fail_since >= self.t_stop_us:
+            # both at once: a large fault, invalid at once (PX4); one alone after T_STOP
+            if self.consistent and ((innovation and load)
+                                    or now - self._fail_since >= self.t_stop_us):
                 self.consistent = False
         else:
             self._fail_since = 0
@@ -224,4 +296,5 @@ class Airspeed:
         return (f"airspeed: IAS {self.ias:.2f} TAS {self.tas:.2f} m/s, "
                 f"{self.air_temperature_c:.1f} degC, confidence {self.confidence:.2f}, "
                 f"{'consistent' if self.consistent else 'INCONSISTENT with ground speed'}"
-                f"{', STUCK' if v.stuck else ''}, error density {v.error_density:.0f}")
+                f"{', STUCK' if v.stuck else ''}, error density {v.error_density:.0f}, "
+                f"load factor ratio {self.load_factor.ratio:.2f}")
