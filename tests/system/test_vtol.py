@@ -53,7 +53,7 @@ def test_vtol_flies_the_square_on_the_wing_and_lands_at_home(vtol):
                  float(log.initial_parameters["NAV_ACC_RAD"]))
     assert max(vtol["waypoint_miss_m"]) <= radius, (vtol["waypoint_miss_m"], radius)
     assert vtol["max_aoa_deg"] < vtol["stall_aoa_deg"]            # never near the stall
-    assert vtol["cruise_max_alt_error_m"] < 10.0                   # of the mission's 30 m
+    assert vtol["cruise_max_alt_error_m"] < 5.0                    # of the mission's 30 m
     assert vtol["landed_distance_m"] < 2.0                         # the quadrotor's accuracy
     assert vtol["phases"][-1]["name"] == "landed and disarmed"
     assert vtol["attitude_error_rms_deg"] < 2.0 and vtol["position_error_rms_m"] < 3.0
