@@ -7,7 +7,8 @@ it). One ``step()``:
    every servo input (hil/world/servo.py) applies its pulses and hands its position command to
    the model's servo actuator (lag and rate limit inside JSBSim);
 2. each motor gets the ESC throttle times battery voltage (as a fraction of the JSBSim motor's
-   rated voltage), so the motors weaken as the pack sags;
+   rated voltage), so the motors weaken as the pack sags (an airframe with servos: the voltage
+   behind the ESCs' bus capacitors, ``BUS_ALPHA``, which keeps several large loads stable);
 3. JSBSim advances dt;
 4. the battery integrates the current drawn (motor electrical power through the ESC efficiency,
    plus avionics) over dt;
