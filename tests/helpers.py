@@ -98,8 +98,26 @@ def publish(board, topic: str, **fields) -> None:
 
 def fly_in(tmp_path_factory, name: str, **config) -> dict:
     """``hil.flight.fly`` quietly (no progress, no plot) in a fresh folder ``name`` of the
-    session's temporary tree: one end-to-end flight's summary."""
+    session's temporary tree: one end-to-end flight's summary.
+
+    CPUs are not pinned (``pin_cpus=False``): ``hil run`` gives its FMU a CPU of its own and
+    lets the board channels spin, which pays when one flight has the machine; under
+    pytest-xdist two flights at once would put both FMUs on the same CPU with spinners beside
+    them. Results do not depend on it (docs/architecture.md, CPU placement)."""
     from hil.flight import FlightConfig, fly
 
     out = tmp_path_factory.mktemp(name)
+    config.setdefault("pin_cpus", False)
     return fly(FlightConfig(out_dir=str(out), progress=False, plot=False, **config))
+
+
+def same_log_start(full_log: str, short_log: str, min_bytes: int = 100_000) -> bool:
+    """True if the ULog of a run stopped early (``FlightConfig.stop_after_s``) is, byte for
+    byte, the start of the whole run's ULog of the same seed: the logger writes one stream,
+    and stopping the boards only cuts it short. That checks a seed's determinism for the cost
+    of the shorter run, not of a second whole flight."""
+    with open(short_log, "rb") as f:
+        short = f.read()
+    with open(full_log, "rb") as f:
+        full = f.read(len(short))
+    return len(short) >= min_bytes and full == short
