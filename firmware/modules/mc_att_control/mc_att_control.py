@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, ClassVar, Final
 
 from firmware.modules.mc_att_control.handover import Handover, other_att_controller
 from firmware.modules.mc_att_control.quat import (
@@ -40,6 +40,8 @@ from firmware.modules.mc_att_control.quat import (
     qmul,
     qyaw,
 )
+from mypy_extensions import mypyc_attr
+
 from firmware.platform.module import ModuleError, WorkItemModule
 from firmware.platform.params import ParamDef
 
@@ -114,6 +116,7 @@ def attitude_error_rates(q: Quat, qd: Quat, yaw_w: float) -> tuple[float, float,
     return s * ex, s * ey, s * ez
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)
 class McAttControlModule(WorkItemModule):
     """``mc_att_control``: vehicle_attitude (+ setpoint or sticks) -> vehicle_rates_setpoint."""
 
@@ -123,10 +126,11 @@ class McAttControlModule(WorkItemModule):
     #: STM32F427: quaternion products and trig, ~100 us per run
     CPU_COST_NS = 100_000
     #: at most 250 Hz, however fast the estimator publishes
-    INTERVAL_LIMIT_US = 4_000
+    INTERVAL_LIMIT_US: ClassVar[int] = 4_000
     PARAMS = PARAMS
-    #: this law's number in MC_ATT_IMPL (mc_att_select)
-    ATT_IMPL = 0
+    #: this law's number in MC_ATT_IMPL (mc_att_select); a ClassVar so that a law derived in
+    #: pure Python (mc_att_control_so3) overrides it in the compiled tier too
+    ATT_IMPL: ClassVar[int] = 0
 
     def __init__(self, system: System, args: Sequence[str] = ()) -> None:
         super().__init__(system, args)
@@ -318,21 +322,8 @@ class McAttControlModule(WorkItemModule):
             self._stabilized_setpoint(q, dt)
         if not self.have_sp:
             return
-        ex, ey, ez = attitude_error_rates(q, self.qd, self.yaw_w)
-        kr, kp, ky = self.gains
-        rr, rp, ry = kr * ex, kp * ey, ky * ez
-        # yaw rate feed-forward: world z rate expressed in body axes
-        ff = self.yawspeed_ff
-        if ff != 0.0:
-            w, x, y, z = q
-            rr += ff * 2.0 * (x * z - w * y)
-            rp += ff * 2.0 * (y * z + w * x)
-            ry += ff * (w * w - x * x - y * y + z * z)
         now = self.platform.hrt.absolute_time()
-        if self.first_output:
-            self._hand_over(rr, rp, ry, now)
-        if self.handover.active:
-            rr, rp, ry = self.handover.apply(rr, rp, ry, now)
+        rr, rp, ry = self._law(q, dt, now)
         mr, mp, my = self.rate_max
         m = self.rates_msg
         m.timestamp = now
@@ -344,6 +335,27 @@ class McAttControlModule(WorkItemModule):
         m.reset_integral = self.reset_integral
         self.pub_rates.publish(m)
         self.rates_published += 1
+
+    def _law(self, q: Quat, dt: float, now: int) -> tuple[float, float, float]:
+        """PX4's quaternion law: body rates from the attitude error (tilt first, yaw weighted
+        by MC_YAW_WEIGHT) times MC_*_P, plus the yaw rate feed-forward; the first output after
+        a swap continues the previous controller's (``_hand_over``). The caller limits the
+        rates to MC_*RATE_MAX. Another law (mc_att_control_so3) overrides this alone."""
+        ex, ey, ez = attitude_error_rates(q, self.qd, self.yaw_w)
+        kr, kp, ky = self.gains
+        rr, rp, ry = kr * ex, kp * ey, ky * ez
+        # yaw rate feed-forward: world z rate expressed in body axes
+        ff = self.yawspeed_ff
+        if ff != 0.0:
+            w, x, y, z = q
+            rr += ff * 2.0 * (x * z - w * y)
+            rp += ff * 2.0 * (y * z + w * x)
+            ry += ff * (w * w - x * x - y * y + z * z)
+        if self.first_output:
+            self._hand_over(rr, rp, ry, now)
+        if self.handover.active:
+            rr, rp, ry = self.handover.apply(rr, rp, ry, now)
+        return rr, rp, ry
 
     def _hand_over(self, rr: float, rp: float, ry: float, now: int) -> None:
         """First output: continue from the previous controller's last rate setpoint, if recent
