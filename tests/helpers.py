@@ -100,14 +100,16 @@ def fly_in(tmp_path_factory, name: str, **config) -> dict:
     """``hil.flight.fly`` quietly (no progress, no plot) in a fresh folder ``name`` of the
     session's temporary tree: one end-to-end flight's summary.
 
-    CPUs are not pinned (``pin_cpus=False``): ``hil run`` gives its FMU a CPU of its own and
-    lets the board channels spin, which pays when one flight has the machine; under
-    pytest-xdist two flights at once would put both FMUs on the same CPU with spinners beside
-    them. Results do not depend on it (docs/architecture.md, CPU placement)."""
+    Both boards run in the test's process (``mode="local"``, as the scenarios do): under
+    pytest-xdist both cores are busy anyway, and the board processes' exchanges cost a quarter
+    of a flight's CPU (plane, 45 s of seed 2: 13.4 s local, 17.7 s in processes, measured).
+    Nor are CPUs pinned: ``hil run`` gives its FMU a CPU of its own, which pays when one
+    flight has the machine. Results depend on neither (docs/architecture.md, Lockstep)."""
     from hil.flight import FlightConfig, fly
 
     out = tmp_path_factory.mktemp(name)
     config.setdefault("pin_cpus", False)
+    config.setdefault("mode", "local")
     return fly(FlightConfig(out_dir=str(out), progress=False, plot=False, **config))
 
 

@@ -25,7 +25,7 @@ __all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
 
 TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
             "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
-            "known_failure", "uavcan_nodes", "can_escs"}
+            "known_failure", "uavcan_nodes", "can_escs", "quantum_us"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
               "cruise", "settle")
@@ -118,6 +118,8 @@ class Scenario:
     #: node IDs, "gnss", "mag", "esc1".."esc4", each kind with an optional "@id"
     uavcan_nodes: tuple[int | str, ...] = ()
     can_escs: bool = False          # motors on DroneCAN ESCs (hil.system.SystemConfig)
+    #: the lockstep quantum (us); the default is hil run's 500 us
+    quantum_us: float = 500.0
     source: str = ""                # the file it came from
 
     def fault_kinds(self) -> set[str]:
@@ -534,7 +536,19 @@ def _from_dict(data: Any, source: str) -> Scenario:
         duration_s=_num(d.get("duration", 120.0), "duration", lo=0.001), events=events,
         timeline=timeline, expect=expect, trace=_flag(d, "trace", True),
         reference=_text(d, "reference"), known_failure=_text(d, "known_failure"),
-        source=source, uavcan_nodes=tuple(nodes), can_escs=can_escs)
+        source=source, uavcan_nodes=tuple(nodes), can_escs=can_escs,
+        quantum_us=_quantum_us(d.get("quantum_us", 500)))
+
+
+#: lockstep quanta a scenario may choose (us): hil run's 500 and its neighbours
+QUANTA_US = (250, 500, 1000, 2000)
+
+
+def _quantum_us(v: Any) -> float:
+    if isinstance(v, bool) or v not in QUANTA_US:
+        raise ScenarioError(f"quantum_us: one of {', '.join(map(str, QUANTA_US))} "
+                            f"(microseconds), got {_r(v)}")
+    return float(v)
 
 
 def load_scenario(path: str) -> Scenario:
