@@ -5,7 +5,11 @@ level, mixed on the FMU from control groups 0 and 1, through pwm_limit, seen on 
 from __future__ import annotations
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from firmware.romfs import ROMFS_ROOT
+from tests.fuzzing import fuzz
 from tests.helpers import booted_fmu, publish
 
 MS = 1_000_000
@@ -61,3 +65,26 @@ def test_a_bad_mixer_file_is_one_line_and_keeps_the_loaded_mixer(board):
         output.load_mixer(cut, "cut")  # a mixer cut after its O: line: the line is named
     status, out = b.ctl_shell("fmu status")
     assert b.system.modules.is_running("fmu") and "AETR.main.mix (4 outputs)" in out
+
+
+_AETR = (ROMFS_ROOT / "mixers" / "AETR.main.mix").read_text()
+
+
+@fuzz(examples=200)
+@given(st.one_of(st.text(max_size=400),
+                 st.tuples(st.integers(0, len(_AETR)), st.integers(0, 40), st.text(max_size=12))
+                 .map(lambda t: _AETR[:t[0]] + t[2] + _AETR[t[0] + t[1]:])))
+def test_any_mixer_text_loads_or_is_refused_and_the_old_mixer_stays(board, text):
+    """What ``mixer load /dev/pwm_output1 FILE`` hands the FMU's outputs: random text and the
+    AETR file with a span replaced. It loads (1..6 outputs) or is refused with a ValueError
+    naming why, and a refused text leaves the mixer that was loaded."""
+    if not board.system.modules.is_running("fmu"):
+        assert board.ctl_shell("fmu start")[0] == 0
+    output = board.system.modules.get("fmu").output
+    output.load_mixer(_AETR, "AETR")
+    try:
+        n = output.load_mixer(text, "fuzz")
+    except ValueError:
+        assert output.mixer_path == "AETR" and output.group.output_count == 4
+    else:
+        assert 1 <= n <= output.n_outputs and output.mixer_path == "fuzz"
