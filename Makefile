@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench lint clean native
+.PHONY: demo test fuzz bench lint clean native ros
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,9 +28,20 @@ demo: $(STAMP)
 # then the paced ones alone, so that no other test takes the CPU they need to keep pace.
 # The tier's equivalence test builds a quick tier of its own when `make native` has not, on one
 # worker while the other runs the rest (tests/hil/test_native.py).
-test: $(STAMP)
+test: $(STAMP) ros
 	$(PY) -m pytest -q -n auto -m "not paced"
 	$(PY) -m pytest -q -m paced
+
+# ROS 1 from Debian (the ROS edge, hil/ros/, and its tests): installed with apt-get only when
+# `roscore` is missing, which needs root (.ci/run runs as root); rospy is pure Python in
+# /usr/lib/python3/dist-packages, which hil.ros appends to the venv's sys.path.
+ROS_DEBS := ros-core python3-rospy python3-rostopic python3-std-msgs python3-sensor-msgs \
+            python3-geometry-msgs python3-nav-msgs python3-rosgraph-msgs
+ros:
+	@command -v roscore >/dev/null 2>&1 || { \
+	  echo "make ros: roscore not found; installing Debian's ROS 1 (apt-get, needs root)"; \
+	  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y \
+	    --no-install-recommends $(ROS_DEBS); }
 
 # The long fuzz run: every fuzz target (tests/fuzzing.py) with FUZZ_SCALE times the budget it
 # has in `make test`, in one process so that hypothesis prints per target how many inputs it
