@@ -36,6 +36,9 @@ from typing import Final
 
 from board.gpio import Pin
 from board.kernel import PRIO_HW, PRIO_ISR, Event, Kernel, call_in_isr
+from board.timer_regs import (
+    REGISTERS, OFFSETS, CCR_INDEX, CR1_CEN, CR1_URS, CR1_ARPE, DIER_UIE, SR_UIF, EGR_UG, BDTR_MOE, OCM_FORCE_HIGH, OCM_PWM1, OCM_PWM2, UNMODELLED_CR1, cc_if, cc_of,
+)
 
 __all__ = ["REGISTERS", "PwmListener", "Timer", "TimerChannel", "TimerIrqHandler"]
 
@@ -46,44 +49,6 @@ log = logging.getLogger(__name__)
 PwmListener = Callable[[int, int, int], None]
 #: ``handler(timer, t_ns)``: the timer's IRQ handler, run in interrupt context.
 TimerIrqHandler = Callable[["Timer", int], None]
-
-#: Register map: offset -> (name, reset value; None = depends on the counter width).
-REGISTERS: Final[dict[int, tuple[str, int | None]]] = {
-    0x00: ("CR1", 0), 0x04: ("CR2", 0), 0x08: ("SMCR", 0), 0x0C: ("DIER", 0),
-    0x10: ("SR", 0), 0x14: ("EGR", 0), 0x18: ("CCMR1", 0), 0x1C: ("CCMR2", 0),
-    0x20: ("CCER", 0), 0x24: ("CNT", 0), 0x28: ("PSC", 0), 0x2C: ("ARR", None),
-    0x30: ("RCR", 0), 0x34: ("CCR1", 0), 0x38: ("CCR2", 0), 0x3C: ("CCR3", 0),
-    0x40: ("CCR4", 0), 0x44: ("BDTR", 0),
-}
-OFFSETS: Final = {name: off for off, (name, _) in REGISTERS.items()}
-_CCR_INDEX: Final = {"CCR1": 0, "CCR2": 1, "CCR3": 2, "CCR4": 3}  # Timer.write fast path
-
-# Bit positions (RM0090 / RM0041).
-CR1_CEN: Final = 1
-CR1_UDIS: Final = 2
-CR1_URS: Final = 4
-CR1_OPM: Final = 8
-CR1_DIR: Final = 0x10
-CR1_CMS: Final = 0x60
-CR1_ARPE: Final = 0x80
-DIER_UIE = SR_UIF = EGR_UG = 1
-BDTR_MOE: Final = 1 << 15
-OCM_FORCE_LOW: Final = 4
-OCM_FORCE_HIGH: Final = 5
-OCM_PWM1: Final = 6
-OCM_PWM2: Final = 7
-_UNMODELLED_CR1: Final = CR1_UDIS | CR1_OPM | CR1_DIR | CR1_CMS
-
-
-def cc_if(ch: int) -> int:
-    """SR.CCxIF / DIER.CCxIE / EGR.CCxG bit of channel ``ch`` (1..4)."""
-    return 1 << ch
-
-
-def cc_of(ch: int) -> int:
-    """SR.CCxOF bit of channel ``ch`` (1..4)."""
-    return 1 << (ch + 8)
-
 
 class _Epoch:
     """Counter arithmetic between two re-anchorings (see module docstring)."""
@@ -235,8 +200,8 @@ class Timer:
                              f"got {value!r}")
         t = self.kernel.context_ns
         self._sync(t)
-        if name in _CCR_INDEX:  # the mixer rewrites CCRs up to 400 times a second
-            i = _CCR_INDEX[name]
+        if name in CCR_INDEX:  # the mixer rewrites CCRs up to 400 times a second
+            i = CCR_INDEX[name]
             before = self._ccr_active[i]
             self._w_ccr(name, value, t)
             self._reschedule(t)
@@ -294,7 +259,7 @@ class Timer:
     def _w_cr1(self, name: str, value: int, t: int) -> None:
         old = self._regs["CR1"]
         self._regs["CR1"] = value & 0x3FF
-        if value & _UNMODELLED_CR1:
+        if value & UNMODELLED_CR1:
             self._log_once("CR1", f"CR1 = {value:#x}: DIR/CMS/OPM/UDIS are not modelled")
         if not value & CR1_ARPE and self._ep.arr != self._regs["ARR"]:
             self._set_arr_now(self._regs["ARR"], t)  # an unbuffered ARR is the preload

@@ -54,6 +54,7 @@ PACKAGES = ("board", "peripherals", "firmware", "ioproc")
 FAST_MODULES: tuple[str, ...] = (
     # the event kernel, pins, buses and timers: every event of both boards goes through them
     "board/kernel.py", "board/board.py", "board/endpoint.py", "board/gpio.py", "board/timer.py",
+    "board/timer_regs.py",
     "board/uart.py", "board/spi.py", "board/i2c.py",
     # the register file and the chips read at kHz rates (the IMU's sample engine first)
     "peripherals/regs.py", "peripherals/errors.py", "peripherals/st_spi.py",
