@@ -73,6 +73,9 @@ class Uart:
       then ``read()``s the buffer. It fires once per idle period, and not at all while the line
       rests at space (inverted-line mismatch).
     - ``on_tx_complete(handler)``: TC, ``handler(t_ns)`` when the transmitter runs dry.
+    - ``on_rx_dma(half_bytes, handler)``: the half- and full-transfer interrupts of a circular
+      RX DMA ring of ``2 * half_bytes`` bytes, ``handler(t_ns)`` at the arrival of every
+      ``half_bytes``-th buffered word of a burst: one kernel event per half ring, not per byte.
 
     A received break reads as 0x00 with FE and LBD (an STM32 outside LIN mode gives 0x00 + FE).
     Data words are bytes: a 9-bit line sends bit 8 as 0 and buffers words masked to 8 bits
@@ -109,6 +112,10 @@ class Uart:
         self._idle_event: Event | None = None
         self._last_rx_ns = 0
         self._idle_armed = False
+        self._dma_handler: TimeHandler | None = None
+        self._dma_half = 0
+        self._dma_count = 0   # buffered words since registration, modulo _dma_half
+        self._dma_gen = 0     # bumped per registration: older ring events are ignored
         self._flags = 0
         self.rx_bytes = 0
         self.overruns = 0
@@ -301,6 +308,10 @@ class Uart:
             if type(data) is not bytes:
                 data = bytes(data)
             self._pending.append([0, t_start_ns, kbits, baud, data, 0])
+            if self._dma_handler is not None:
+                if t_start_ns >= self._last_rx_ns + rx.frame_ns_ceil:
+                    self._dma_count = 0   # the line went idle: the driver re-armed the ring
+                self._schedule_dma_burst(t_start_ns, kbits, baud, n, now)
         last = max(last, now)
         self._last_rx_ns = last
         if self._idle_handler is not None:
@@ -338,6 +349,10 @@ class Uart:
                 call_at(t, self._rx_isr, v, f, priority=PRIO_ISR)
         else:
             self._pending.append([1, entries, 0])
+            if self._dma_handler is not None:
+                if entries[0][0] >= self._last_rx_ns + 2 * self._config.frame_ns_ceil:
+                    self._dma_count = 0   # idle before this word (its start bit included)
+                self._schedule_dma_entries(entries)
         last = entries[-1][0]
         self._last_rx_ns = last
         if idle and self._idle_handler is not None:
@@ -475,6 +490,49 @@ class Uart:
         if handler is None:
             Kernel.cancel(self._idle_event)
             self._idle_event = None
+
+    def on_rx_dma(self, half_bytes: int, handler: TimeHandler | None) -> None:
+        """RX DMA half/full-transfer interrupts: ``handler(t_ns)`` when every ``half_bytes``-th
+        buffered word has arrived; None to stop.
+
+        The STM32 way for a fast serial port (NuttX's RX DMA, PX4IO): the DMA fills a circular
+        ring and interrupts at its half and its end, and the IDLE interrupt (:meth:`on_idle`)
+        catches the tail of a burst. The driver re-arms the ring at IDLE (as PX4IO's link does),
+        so the count restarts with each burst that follows an idle line: a message shorter
+        than ``half_bytes`` gives IDLE only, a long stream one interrupt per ``half_bytes``.
+        Only bytes that go to the buffer count (not those handed to an :meth:`on_rx` handler).
+        """
+        if handler is not None and (type(half_bytes) is not int or half_bytes <= 0):
+            raise ValueError(f"Uart {self.name}: half_bytes must be an int > 0: {half_bytes!r}")
+        self._dma_handler = handler
+        self._dma_half = half_bytes if handler is not None else 0
+        self._dma_count = 0
+        self._dma_gen += 1
+
+    def _schedule_dma_burst(self, t_start_ns: int, kbits: int, baud: int, n: int,
+                            now: int) -> None:
+        half = self._dma_half
+        c = self._dma_count
+        call_at = self.kernel.call_at
+        isr = self._dma_isr
+        gen = self._dma_gen
+        for i in range(half - c, n + 1, half):  # 1-based index of each ring-half's last word
+            call_at(max(now, t_start_ns + (i * kbits) // baud), isr, gen, priority=PRIO_ISR)
+        self._dma_count = (c + n) % half
+
+    def _schedule_dma_entries(self, entries: list[tuple[int, int, int]]) -> None:
+        half = self._dma_half
+        c = self._dma_count
+        n = len(entries)
+        for i in range(half - c, n + 1, half):
+            self.kernel.call_at(entries[i - 1][0], self._dma_isr, self._dma_gen,
+                                priority=PRIO_ISR)
+        self._dma_count = (c + n) % half
+
+    def _dma_isr(self, gen: int) -> None:
+        handler = self._dma_handler
+        if handler is not None and gen == self._dma_gen:
+            call_in_isr(self.kernel, handler, self.kernel.now_ns)
 
     def _rx_isr(self, byte: int, flags: int) -> None:
         if flags:

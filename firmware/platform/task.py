@@ -14,29 +14,53 @@ that yields what it waits for::
 
 The same waiting machinery (:class:`PollWaiter`) lets a work item wait on several topics with a
 timeout and be scheduled when one of them publishes or the deadline passes.
+
+Serial ports (:class:`firmware.platform.serial.SerialPort`) are pollable like topics, as on
+NuttX where both are files: ``yield task.poll([sub, port], timeout_ms=10)`` wakes for a
+publication or for bytes on the UART (the RX line's IDLE after a burst, or every half RX DMA
+ring of a long stream), and ``n`` counts every ready item. A port keeps the same poll list a
+topic node has (``node.callbacks``), so waiting on topics works exactly as before.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Callable, Generator, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Generator, Sequence, Union
 
 from board.kernel import NS_PER_US, PRIO_THREAD, KernelError
+from firmware.platform.serial import SerialError, SerialPort
+from firmware.platform.uorb import Subscription
 
 if TYPE_CHECKING:
     from firmware.platform import Platform
     from firmware.platform.hrt import HrtCall
-    from firmware.platform.uorb import Subscription
 
-__all__ = ["Poll", "Sleep", "PollWaiter", "Task"]
+__all__ = ["Poll", "Pollable", "Sleep", "PollWaiter", "Task"]
+
+#: What poll() waits on: a topic subscription or a serial port (both files on NuttX).
+Pollable = Union[Subscription, SerialPort]
+
+
+def _check_pollable(items: list[Pollable]) -> None:
+    """A clear error for something poll() cannot wait on, or a closed port."""
+    for s in items:
+        if isinstance(s, Subscription):
+            continue
+        if isinstance(s, SerialPort):
+            if s.closed:
+                raise SerialError(f"poll on {s.device}: the port is closed")
+            continue
+        raise TypeError(f"poll() waits on Subscriptions and SerialPorts, not {s!r}")
 
 
 class Poll:
-    """What a task yields to wait for any of ``subs`` to update, or ``timeout_us`` (< 0: never)."""
+    """What a task yields to wait for any of ``subs`` (topics, serial ports) to be ready, or
+    ``timeout_us`` (< 0: never). Checked here, so bad use fails inside the task's code."""
 
     __slots__ = ("subs", "timeout_us")
 
-    def __init__(self, subs: Sequence[Subscription], timeout_us: int) -> None:
-        self.subs = list(subs)
+    def __init__(self, subs: Sequence[Pollable], timeout_us: int) -> None:
+        self.subs: list[Pollable] = list(subs)
+        _check_pollable(self.subs)
         self.timeout_us = timeout_us
 
 
@@ -54,17 +78,18 @@ class Sleep:
 class PollWaiter:
     """Wait until one of ``subs`` has new data or the timeout expires, then ``on_done(n)``.
 
-    ``n`` is the number of subscriptions with unread data (0 means the timeout expired), as
-    ``poll()`` returns. If data is already waiting, ``on_done`` runs at once (as a new event).
+    ``subs`` are subscriptions and serial ports. ``n`` is the number of items with unread data
+    (0 means the timeout expired), as ``poll()`` returns. If data is already waiting, ``on_done`` runs at once (as a new event).
     ``on_done`` runs as a thread-priority event after the publisher's context has finished.
     """
 
     __slots__ = ("platform", "subs", "on_done", "priority", "_done", "_timer", "_registered")
 
-    def __init__(self, platform: Platform, subs: Sequence[Subscription], timeout_us: int,
+    def __init__(self, platform: Platform, subs: Sequence[Pollable], timeout_us: int,
                  on_done: Callable[[int], Any], priority: int = PRIO_THREAD) -> None:
         self.platform = platform
-        self.subs = list(subs)
+        self.subs: list[Pollable] = list(subs)
+        _check_pollable(self.subs)
         self.on_done = on_done
         self.priority = priority
         self._done = False
@@ -129,7 +154,7 @@ class Task:
     # -- what a task yields ---------------------------------------------------------------
 
     @staticmethod
-    def poll(subs: Sequence[Subscription], timeout_ms: int) -> Poll:
+    def poll(subs: Sequence[Pollable], timeout_ms: int) -> Poll:
         return Poll(subs, timeout_ms * 1000 if timeout_ms >= 0 else -1)
 
     @staticmethod
