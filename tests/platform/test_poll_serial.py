@@ -301,3 +301,36 @@ def test_closing_a_port_while_polled_leaves_the_other_items(platform, kernel, wi
     kernel.call_at(2 * NS_PER_MS, peer.write, b"late")    # no interrupt handlers any more
     kernel.run(30 * NS_PER_MS)
     assert results == [(0, (False, False), 10 * NS_PER_MS)]
+
+
+def test_on_the_fmu_board_telem2_is_a_pollable_file():
+    """The real board: /dev/ttyS2 is USART3 (TELEM2); a peer's bytes wake a task that polls
+    the port with a topic, on the board's own kernel and platform."""
+    from board.fmu_v2 import FmuV2Board
+    from firmware.system import System
+
+    board = FmuV2Board(firmware="none")
+    system = System(board.platform, hw=board)
+    kernel = board.kernel
+    port = open_serial(system, "/dev/ttyS2", BAUD)
+    assert port.uart is board.uarts["USART3"] and port.uart.config.baud == BAUD
+    with pytest.raises(SerialError, match="no serial device /dev/ttyS7"):
+        open_serial(system, "/dev/ttyS7", BAUD)
+    companion = Uart(kernel, "companion", CFG)
+    connect(companion, port.uart)
+    connect(port.uart, companion)
+    sub = Subscription(board.platform.orb, "ping_test")
+    results = []
+
+    def main(task):
+        n = yield task.poll([sub, port], timeout_ms=100)
+        data = port.read()
+        results.append((n, data, kernel.now_ns))
+        port.write(data.upper())
+
+    t0 = kernel.now_ns
+    Task(board.platform, "echo", main).start()
+    kernel.call_at(t0 + NS_PER_MS, companion.write, b"ping")
+    kernel.run(t0 + 5 * NS_PER_MS)
+    assert results == [(1, b"ping", idle_ns(t0 + NS_PER_MS, 4))]
+    assert companion.read() == b"PING"
