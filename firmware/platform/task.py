@@ -79,8 +79,9 @@ class PollWaiter:
     """Wait until one of ``subs`` has new data or the timeout expires, then ``on_done(n)``.
 
     ``subs`` are subscriptions and serial ports. ``n`` is the number of items with unread data
-    (0 means the timeout expired), as ``poll()`` returns. If data is already waiting, ``on_done`` runs at once (as a new event).
-    ``on_done`` runs as a thread-priority event after the publisher's context has finished.
+    (0 means the timeout expired), as ``poll()`` returns. If data is already waiting,
+    ``on_done`` runs at once (as a new event). ``on_done`` runs as a thread-priority event
+    after the publisher's (or the UART interrupt's) context has finished.
     """
 
     __slots__ = ("platform", "subs", "on_done", "priority", "_done", "_timer", "_registered")
