@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Final
 
 __all__ = ["Wire", "WORLD", "uart_link", "PIXHAWK1", "CAN_ESC_WIRES", "CAN_ESC_NODES",
-           "FMU_AUX_WIRES", "with_can_escs", "with_fmu_aux"]
+           "COMPANION", "COMPANION_WIRES", "FMU_AUX_WIRES", "with_can_escs", "with_fmu_aux"]
 
 WORLD: Final = "world"
 
@@ -77,3 +77,16 @@ FMU_AUX_WIRES: Final[list[Wire]] = [
 def with_fmu_aux(wiring: list[Wire], n_aux: int) -> list[Wire]:
     """``wiring`` plus the first ``n_aux`` FMU AUX wires (the channels the world model uses)."""
     return wiring + FMU_AUX_WIRES[:max(0, min(n_aux, len(FMU_AUX_WIRES)))]
+
+
+#: The companion computer's board name (companion.board.CompanionBoard).
+COMPANION: Final = "companion"
+
+#: The companion computer on the FMU's TELEM2 (USART3, /dev/ttyS2): an FTDI USB-serial cable
+#: (/dev/ttyUSB0 on the companion) crossed TX to RX. Both ends start at their defaults (the
+#: FMU's 57600, the cable's 921600) and the uORB bridge sets each to 921600 (the FMU's
+#: SER_TEL2_BAUD); until then a byte sent at the wrong rate arrives as framing errors, as on
+#: the wire. The companion's "ros" port is wired by hil.ros.link.add_ros_link.
+COMPANION_WIRES: Final[list[Wire]] = uart_link(
+    ("fmu", "telem2"), (COMPANION, "telem2"),
+    "FMU TELEM2 (USART3) <-> companion /dev/ttyUSB0 (FTDI cable), 921600 8N1 (uORB bridge)")

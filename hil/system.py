@@ -8,7 +8,9 @@
 * an RC transmitter with an S.BUS receiver on the IO (the rig's other receiver kinds can be
   added), scripted in virtual time,
 * the safety switch,
-* optionally the FMU console bridged to a host pty and TCP port (``hil shell``).
+* optionally the FMU console bridged to a host pty and TCP port (``hil shell``),
+* optionally a companion computer on the FMU's TELEM2 (a third board, hil.companion_system;
+  docs/companion.md), its console bridged too when the FMU's is, and its topics on ROS.
 """
 
 from __future__ import annotations
@@ -92,6 +94,14 @@ class SystemConfig:
     uart_bind: dict[str, str] = field(default_factory=dict)
     #: TELEM1/TELEM2 bridges also on TCP ports (the hil:// pyserial URLs of hil fly)
     uart_tcp: bool = False
+    #: a companion computer (companion.board, a third board) on the FMU's TELEM2 with the
+    #: uORB bridge (FMU UORB_BRG_CFG 102); docs/companion.md
+    companion: bool = False
+    #: the attitude law on the companion (FMU MC_ATT_IMPL 2, companion mc_att_control);
+    #: implies ``companion``
+    companion_att: bool = False
+    #: the companion's uORB topics on ROS 1 (hil.ros.link.add_ros_link); implies ``companion``
+    ros: bool = False
 
 
 def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
@@ -129,6 +139,11 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         fmu_kwargs["extra_devices"] = host.fmu_devices  # names: a trace records plain data
     boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
+    companion_wires: list[Wire] = []
+    if cfg.companion or cfg.companion_att or cfg.ros:
+        from hil.companion_system import add_companion
+
+        companion_wires = add_companion(cfg, boards, params, cfg.seed)
     world = WorldPorts(seed=cfg.seed, airframe=host.world_model if host is not None else "f450")
     devices: dict[str, Any] = {"world": world}
     hub = DeviceHub(world)
@@ -162,12 +177,21 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         hub.add(bridge)
         devices["console"] = bridge
         wiring += uart_link(("fmu", "console"), (WORLD, "console"))
+        if companion_wires:  # the companion's serial console too (hil shell --board companion)
+            cbridge = SerialBridge("companion_console", baud=115_200)
+            hub.add(cbridge)
+            devices["companion_console"] = cbridge
+            wiring += uart_link(("companion", "console"), (WORLD, "companion_console"))
+    if companion_wires and "telem2" in cfg.uart_bind:
+        raise ValueError("--uart telem2: TELEM2 carries the companion computer's cable")
     if cfg.telem_pty:
         from hil.console import SerialBridge
 
         for port in ("telem1", "telem2"):
             if port in cfg.uart_bind:
                 continue  # bound to a device or URL instead (hil.bindings_uart)
+            if port == "telem2" and companion_wires:
+                continue  # the companion computer's cable is plugged in there
             # A radio modem on the connector: its serial side is a host pty (57600 8N1, the
             # FMU's default for TELEM links), e.g. mavproxy.py --master=/dev/pts/N.
             tb = SerialBridge(port, baud=57_600, tcp_port=0 if cfg.uart_tcp else None)
@@ -195,6 +219,11 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
         from hil.bindings_can import add_can_hosts
 
         wiring += add_can_hosts(cfg, hub, devices, can_hosts)
+    wiring += companion_wires
+    if cfg.ros:
+        from hil.ros.link import add_ros_link
+
+        wiring += add_ros_link(cfg, hub, devices)
     if cfg.uart_bind:
         from hil.bindings_uart import add_uart_bindings
 
