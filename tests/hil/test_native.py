@@ -103,8 +103,10 @@ def _classes_and_bases(rel: str) -> list[tuple[str, list[tuple[str, str]], bool]
                  for b in node.bases if isinstance(b, ast.Name)
                  and (b.id in imported or b.id in local)]
         bases = [(f, c) for f, c in bases if (native.ROOT / f).exists()]
-        allows = "allow_interpreted_subclasses" in ast.unparse(node.decorator_list) \
-            if node.decorator_list else False
+        # a non-native class (``native_class=False``: the exceptions) is an ordinary Python
+        # class even when compiled, so any module may subclass it
+        decorators = ast.unparse(node.decorator_list) if node.decorator_list else ""
+        allows = "allow_interpreted_subclasses" in decorators or "native_class=False" in decorators
         out.append((node.name, bases, allows))
     return out
 
