@@ -63,6 +63,8 @@ def add_companion(cfg: Any, boards: dict[str, Any], fmu_params: dict[str, Any],
     if cfg.companion_att:
         wanted.update(COMPANION_ATT_FMU_PARAMS)
         startup = COMPANION_ATT_STARTUP
+    if cfg.ros:  # the companion's side of the ROS edge (hil/ros/link.py owns the other end)
+        startup += ("ros_bridge start",)
     for name, value in _declared(wanted).items():
         fmu_params.setdefault(name, value)  # an explicit --param wins
     kwargs: dict[str, Any] = {

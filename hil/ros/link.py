@@ -260,11 +260,9 @@ class RosLink:
 
 
 def add_ros_link(cfg: Any, hub: Any, devices: dict[str, Any]) -> list[Wire]:
-    """The ROS edge on the companion's "ros" port (``SystemConfig.ros``): the node joins the
-    graph now (OSError naming the master if there is none) and the wires are returned."""
-    if not getattr(cfg, "companion", False):
-        raise ValueError("--ros needs --companion: ROS reaches the vehicle through the "
-                         "companion computer's ros_bridge")
+    """The ROS edge on the companion's "ros" port (``SystemConfig.ros``, which brings the
+    companion and its ``ros_bridge start``): the node joins the graph now (OSError naming the
+    master if there is none) and the wires are returned."""
     link = RosLink(load_topics())
     link.start()
     hub.add(link)
