@@ -334,3 +334,24 @@ def test_on_the_fmu_board_telem2_is_a_pollable_file():
     kernel.run(t0 + 5 * NS_PER_MS)
     assert results == [(1, b"ping", idle_ns(t0 + NS_PER_MS, 4))]
     assert companion.read() == b"PING"
+
+
+def test_bytes_through_the_line_decoder_wake_the_same_way(platform, kernel, wire):
+    """A peer 1 % fast (930 000 baud) goes through the bit-level decoder, not the fast path:
+    still a wake per 32 bytes and one at IDLE for the tail; a break reads as one 0x00."""
+    _, mine, port = wire
+    fast = Uart(kernel, "fast_peer", UartConfig(baud=930_000))
+    connect(fast, mine)
+    reads = []
+    Task(platform, "reader", stream_reader(port, kernel, reads, 101)).start()
+    kernel.call_at(NS_PER_MS, fast.write, bytes(range(100)))
+    kernel.call_at(3 * NS_PER_MS, fast.send_break)
+    kernel.run(30 * NS_PER_MS)
+    assert [(n, got) for n, got, _ in reads] == [(1, 32), (1, 32), (1, 32), (1, 4), (1, 1)]
+    sender = UartConfig(baud=930_000)
+    bit_ns = 1_000_000_000 // 930_000
+    for i, (_, _, t) in enumerate(reads[:3]):      # at the 32nd, 64th, 96th byte's stop bit
+        assert abs(t - (NS_PER_MS + sender.burst_ns(32 * (i + 1)))) < bit_ns
+    assert reads[3][2] > NS_PER_MS + sender.burst_ns(100)             # IDLE after the tail
+    assert 3 * NS_PER_MS < reads[4][2] < 3 * NS_PER_MS + 3 * sender.frame_ns_ceil
+    assert mine.breaks == 1
