@@ -27,10 +27,10 @@ from hil.world.atmosphere import KELVIN_0C, isa_pressure_pa, isa_temperature_k
 from hil.world.magnetic import earth_field_ned_gauss
 from hil.world.truth import Truth, quat_from_euler
 from hil.worldlink import TRUTH_FIELDS, truth_record
+from common.units import G0_M_S2
 
 __all__ = ["SIDE_ATTITUDES_DEG", "TRUTH_WIRE", "CalibrationJig", "SideTurner", "statustexts"]
 
-G0 = 9.80665
 Mat = list[list[float]]
 Vec = tuple[float, float, float]
 
@@ -189,7 +189,7 @@ class CalibrationJig:
         pitch = -math.asin(max(-1.0, min(1.0, r[2][0])))
         yaw = math.atan2(r[1][0], r[0][0])
         return truth_record(Truth(
-            t_ns=t_ns, accel_body_m_s2=_rotate_t(r, (0.0, 0.0, -G0)), gyro_rad_s=rates,
+            t_ns=t_ns, accel_body_m_s2=_rotate_t(r, (0.0, 0.0, -G0_M_S2)), gyro_rad_s=rates,
             q_nb=quat_from_euler(roll, pitch, yaw), euler_rad=(roll, pitch, yaw),
             mag_body_gauss=_rotate_t(r, self.field_ned), pressure_pa=self.pressure_pa,
             temperature_c=self.temperature_c, lat_deg=self.lat_deg, lon_deg=self.lon_deg,

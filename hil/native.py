@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: The board packages. The mirror holds them whole (their pure modules import their compiled
 #: neighbours) and the freshness digest covers them. ``hil`` and ``bench`` are not mirrored: they
 #: import from the sources, and editing them never makes the tier stale.
-PACKAGES = ("board", "peripherals", "firmware", "ioproc")
+PACKAGES = ("common", "board", "peripherals", "firmware", "ioproc")
 
 #: The fast modules: the only ones mypyc compiles, chosen by profile and paired measurement
 #: (docs/architecture.md, "The compiled tier"). Per-file self time of the pure default flight
@@ -55,6 +55,8 @@ FAST_MODULES: tuple[str, ...] = (
     # the event kernel, pins, buses and timers: every event of both boards goes through them
     "board/kernel.py", "board/board.py", "board/endpoint.py", "board/gpio.py", "board/timer.py",
     "board/timer_regs.py",
+    # the bottom package's quaternions: the estimator and controllers call them per sample
+    "common/quaternion.py", "common/units.py",
     "board/uart.py", "board/spi.py", "board/i2c.py",
     # the register file and the chips read at kHz rates (the IMU's sample engine first)
     "peripherals/regs.py", "peripherals/errors.py", "peripherals/st_spi.py",

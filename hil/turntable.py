@@ -19,7 +19,8 @@ from board.kernel import NS_PER_US, PRIO_HW, Kernel
 from hil.world.atmosphere import KELVIN_0C, isa_pressure_pa, isa_temperature_k
 from hil.world.magnetic import earth_field_ned_gauss
 from hil.world.truth import rotate_ned_to_body
-from peripherals.physics import G0, Environment
+from peripherals.physics import Environment
+from common.units import G0_M_S2
 
 __all__ = ["Turntable"]
 
@@ -49,7 +50,7 @@ class Turntable:
     def _apply(self) -> None:
         env = self.env
         # Specific force of a board at rest: the reaction to gravity, -g along NED down.
-        env.accel_m_s2 = rotate_ned_to_body((0.0, 0.0, -G0), self.roll, self.pitch, self.yaw)
+        env.accel_m_s2 = rotate_ned_to_body((0.0, 0.0, -G0_M_S2), self.roll, self.pitch, self.yaw)
         env.gyro_rad_s = self.rate
         env.mag_gauss = rotate_ned_to_body(self.field_ned, self.roll, self.pitch, self.yaw)
         env.t_ns = self.kernel.now_ns

@@ -34,7 +34,8 @@ import numpy as np
 from board.gpio import Pin
 from board.kernel import Kernel
 from peripherals.errors import AxisErrors, ImuErrorModel
-from peripherals.physics import G0, Environment
+from peripherals.physics import Environment
+from common.units import G0_M_S2
 from peripherals.regs import Field, Reg, RegisterFile
 from peripherals.st_spi import (
     FIFO_BYPASS,
@@ -74,12 +75,12 @@ MAG_MGAUSS_LSB: Final[tuple[float, ...]] = (0.080, 0.160, 0.320, 0.479)
 ACCEL_ABW_HZ: Final[tuple[float, ...]] = (773.0, 194.0, 362.0, 50.0)
 
 ACCEL_ERRORS: Final = AxisErrors(
-    noise_density=150e-6 * G0,   # 150 ug/sqrt(Hz) (datasheet typical), in m/s^2/sqrt(Hz)
-    bias=0.010 * G0,             # residual zero-g offset spread
-    bias_instability=0.0002 * G0,
+    noise_density=150e-6 * G0_M_S2,   # 150 ug/sqrt(Hz) (datasheet typical), in m/s^2/sqrt(Hz)
+    bias=0.010 * G0_M_S2,             # residual zero-g offset spread
+    bias_instability=0.0002 * G0_M_S2,
     scale_error=0.01,
     misalignment_rad=0.002,
-    temp_coeff=0.0005 * G0,      # +-0.5 mg/degC
+    temp_coeff=0.0005 * G0_M_S2,      # +-0.5 mg/degC
 )
 MAG_ERRORS: Final = AxisErrors(
     noise_density=1.0e-3,        # gauss/sqrt(Hz): 5 mgauss RMS at 50 Hz, high resolution
@@ -269,7 +270,7 @@ class Lsm303d(StSpiTarget):
             a = self._sense(self.accel_errors, "accel", env.accel_m_s2, t_ns, 2.0 * bw,
                             env.board_temperature_c)
             afs = (ctrl2 & CTRL2_AFS) >> CTRL2_AFS_LSB
-            lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0
+            lsb = ACCEL_MG_LSB[afs if afs < 5 else 4] * 1e-3 * G0_M_S2
             raw = (to_int16(a[0] / lsb), to_int16(a[1] / lsb), to_int16(a[2] / lsb))
         self._last_accel = raw
         return raw

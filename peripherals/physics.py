@@ -15,17 +15,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["Environment"]
 
 Vec3 = tuple[float, float, float]
-G0: Final = 9.80665
 
 
 @dataclass
 class Environment:
     t_ns: int = 0
-    accel_m_s2: Vec3 = (0.0, 0.0, -G0)     # specific force, body FRD (level and still: -g on z)
+    accel_m_s2: Vec3 = (0.0, 0.0, -G0_M_S2)     # specific force, body FRD (level and still: -g on z)
     gyro_rad_s: Vec3 = (0.0, 0.0, 0.0)     # body rates, FRD
     mag_gauss: Vec3 = (0.21, 0.01, 0.43)   # earth field in body axes
     pressure_pa: float = 101_325.0

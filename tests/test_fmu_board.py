@@ -13,9 +13,9 @@ from hil.turntable import Turntable
 from hil.world.atmosphere import isa_pressure_pa
 from hil.world.magnetic import earth_field_ned_gauss
 from hil.world.truth import rotate_ned_to_body
+from common.units import G0_M_S2
 
 S = 1_000_000_000
-G = 9.80665
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def test_every_driver_started(still_board):
 
 def test_accelerometers_report_gravity_at_the_attitude(still_board):
     board, _, _ = still_board
-    expect = rotate_ned_to_body((0.0, 0.0, -G), math.radians(10), math.radians(-5),
+    expect = rotate_ned_to_body((0.0, 0.0, -G0_M_S2), math.radians(10), math.radians(-5),
                                 math.radians(30))
     accels = _instances(board, "sensor_accel")
     assert len(accels) == 2  # MPU6000 and LSM303D

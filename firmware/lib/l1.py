@@ -24,10 +24,10 @@ from __future__ import annotations
 
 import math
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["L1Control", "wrap_pi"]
 
-G: Final = 9.80665
 _PI: Final = math.pi
 #: below this ground speed the velocity direction means nothing: use the heading instead
 _MIN_GS_M_S: Final = 1.0
@@ -83,7 +83,7 @@ class L1Control:
 
     def nav_roll(self) -> float:
         """The roll angle (rad) of a coordinated turn giving the lateral acceleration."""
-        r = math.atan(self.lateral_accel_m_s2 / G)
+        r = math.atan(self.lateral_accel_m_s2 / G0_M_S2)
         lim = self.roll_lim_rad
         return -lim if r < -lim else (lim if r > lim else r)
 

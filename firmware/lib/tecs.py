@@ -54,10 +54,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["TAS_GATE_TIMEOUT_S", "TAS_INNOV_GATE_M_S", "Tecs", "TecsParams", "TecsStatus"]
 
-G: Final = 9.80665
 #: an airspeed sample this far from the filter's acceleration-based prediction is implausible
 #: (the same figure as ASPD_FS_INNOV's default: more than gust and sensor noise)
 TAS_INNOV_GATE_M_S: Final = 5.0
@@ -229,8 +229,8 @@ class Tecs:
             self.pitch_integ = 0.0
             self.initialised = True
         tas = max(self.tas_state, 1.0)
-        ste_rate_max = G * p.climb_max_m_s
-        ste_rate_min = -G * p.sink_min_m_s
+        ste_rate_max = G0_M_S2 * p.climb_max_m_s
+        ste_rate_min = -G0_M_S2 * p.sink_min_m_s
 
         # airspeed demand: limits, climb-out at the minimum, rate limited by the throttle range
         v_min, v_max = p.airspeed_min_m_s * k, max(p.airspeed_max_m_s, p.airspeed_min_m_s) * k
@@ -269,8 +269,8 @@ class Tecs:
                            and self.last_throttle >= 0.95 * throttle_max)
 
         # energies and their rates
-        spe_sp, spe = G * self.hgt_sp_adj, G * altitude_m
-        spe_rate_sp, spe_rate = G * hgt_rate_sp, G * height_rate_m_s
+        spe_sp, spe = G0_M_S2 * self.hgt_sp_adj, G0_M_S2 * altitude_m
+        spe_rate_sp, spe_rate = G0_M_S2 * hgt_rate_sp, G0_M_S2 * height_rate_m_s
         ske_sp, ske = 0.5 * self.tas_sp_adj * self.tas_sp_adj, 0.5 * tas * tas
         ske_rate_sp, ske_rate = tas * tas_rate_sp, tas * self.tas_rate_state
 
@@ -340,7 +340,7 @@ class Tecs:
         seb_rate_error = seb_rate_sp - seb_rate
         s.seb_error, s.seb_rate_error = seb_error, seb_rate_error
         tc = max(p.time_const_s, 0.1)
-        gain_inv = tas * tc * G           # SEB per radian of pitch over one time constant
+        gain_inv = tas * tc * G0_M_S2           # SEB per radian of pitch over one time constant
         integ_lo, integ_hi = pitch_min * gain_inv, pitch_max * gain_inv
         if climbout:
             pitch_min = max(pitch_min, min(climbout_pitch_min, pitch_max))

@@ -290,6 +290,7 @@ STACK_MODULES: Final[dict[str, str]] = {
     "mc_rate_control": "firmware.modules.mc_rate_control:McRateControlModule",
     "mc_att_control": "firmware.modules.mc_att_control:McAttControlModule",
     "mc_att_control_so3": "firmware.modules.mc_att_control_so3:McAttControlSo3Module",
+    "mc_att_companion": "firmware.modules.mc_att_companion:McAttCompanionModule",
     "mc_att_select": "firmware.modules.mc_att_select:McAttSelectModule",
     "mc_pos_control": "firmware.modules.mc_pos_control:McPosControlModule",
     "fw_att_control": "firmware.modules.fw_att_control:FwAttControlModule",
@@ -300,6 +301,7 @@ STACK_MODULES: Final[dict[str, str]] = {
     "uavcan": "firmware.drivers.uavcan:UavcanModule",
     "failure_injector": "firmware.modules.failure_injector:FailureInjectorModule",
     "load_mon": "firmware.modules.load_mon:LoadMonModule",
+    "uorb_bridge": "firmware.modules.uorb_bridge:UorbBridgeModule",
 }
 
 

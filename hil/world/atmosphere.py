@@ -9,8 +9,8 @@ uses geopotential altitude (the difference is 0.04 m at 500 m).
 from __future__ import annotations
 
 import math
+from common.units import G0_M_S2
 
-G0_M_S2 = 9.80665  # standard gravity
 R_AIR_J_KG_K = 287.05287  # specific gas constant of dry air
 P0_PA = 101325.0  # sea-level pressure
 T0_K = 288.15  # sea-level temperature

@@ -20,6 +20,7 @@ os.environ.setdefault("JSBSIM_DEBUG", "0")
 import jsbsim  # noqa: E402
 
 from .battery import BatteryParams  # noqa: E402
+from common.units import G0_M_S2
 
 __all__ = ["Airframe", "AIRFRAMES", "Fdm", "FT", "LBF_N", "PSF_PA", "Motor", "Servo",
            "N_MAIN", "N_AUX", "N_CHANNELS"]
@@ -229,7 +230,7 @@ class Fdm:
         # Start with the gear compressed by the static load, so that a vehicle on the ground
         # starts at rest instead of dropping onto its springs.
         if agl_m <= 0.0:
-            sag = airframe.mass_kg * 9.80665 / airframe.gear_stiffness_n_m
+            sag = airframe.mass_kg * G0_M_S2 / airframe.gear_stiffness_n_m
             h_agl = airframe.gear_height_m - sag
         else:
             h_agl = airframe.gear_height_m + agl_m

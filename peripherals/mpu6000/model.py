@@ -92,6 +92,7 @@ from peripherals.mpu6000.rotation import board_to_sensor
 from peripherals.mpu6000.sampling import SampleEngine
 from peripherals.physics import Environment
 from peripherals.regs import RegisterFile
+from common.units import G0_M_S2
 
 if TYPE_CHECKING:
     from board.gpio import Pin
@@ -100,7 +101,6 @@ __all__ = ["Mpu6000", "default_accel_errors", "default_gyro_errors"]
 
 log = logging.getLogger(__name__)
 
-G0: Final = 9.80665
 DEG: Final = 0.017453292519943295
 RESET_TIME_NS: Final = 100 * NS_PER_MS
 INT_PULSE_NS: Final = 50_000
@@ -121,7 +121,7 @@ def default_gyro_errors() -> AxisErrors:
 
 def default_accel_errors() -> AxisErrors:
     """Datasheet noise (400 ug/rtHz) with a calibrated 2 mg bias spread."""
-    return AxisErrors(noise_density=400e-6 * G0, bias=0.002 * G0, scale_error=0.002,
+    return AxisErrors(noise_density=400e-6 * G0_M_S2, bias=0.002 * G0_M_S2, scale_error=0.002,
                       misalignment_rad=0.001)
 
 

@@ -41,10 +41,10 @@ from peripherals.mpu6000.registers import (
 )
 from peripherals.mpu6000.rotation import Matrix3
 from peripherals.physics import Environment
+from common.units import G0_M_S2
 
 __all__ = ["SampleEngine"]
 
-G0: Final = 9.80665
 ACCEL_PERIOD_NS: Final = 1_000_000
 NOISE_BLOCK: Final = 8192
 _PACK7: Final = struct.Struct(">7h").pack
@@ -60,7 +60,7 @@ class SampleEngine:
         self.rotation = rotation
         self.gyro_err = gyro_err
         self.accel_err = accel_err
-        self._st_accel_full = tuple(v * G0 for v in self_test[0])
+        self._st_accel_full = tuple(v * G0_M_S2 for v in self_test[0])
         self._st_gyro_full = tuple(v * DEG for v in self_test[1])
         self._noise: list[float] = []
         self._npos = 0
@@ -96,7 +96,7 @@ class SampleEngine:
         self._sigma_g = math.sqrt(min(rate_g / 2, bw_g * math.pi / 2))
         self._sigma_a = math.sqrt(min(500.0, bw_a * math.pi / 2))
         self._lsb_g = GYRO_LSB_PER_DPS[fs_sel] / DEG
-        self._lsb_a = ACCEL_LSB_PER_G[afs_sel] / G0 * (2.0 if self.rev_c else 1.0)
+        self._lsb_a = ACCEL_LSB_PER_G[afs_sel] / G0_M_S2 * (2.0 if self.rev_c else 1.0)
         # Self-test: the trim-derived response is added on the axes whose ST bit is set.
         self._g_on = bool(gyro_st & SELF_TEST_BITS)
         self._st_gyro = tuple(v if gyro_st & (GYRO_CONFIG_XG_ST >> i) else 0.0

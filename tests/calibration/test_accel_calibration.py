@@ -10,6 +10,7 @@ import math
 from pymavlink.dialects.v20 import common as mav
 
 from hil.calibration_jig import SideTurner
+from common.units import G0_M_S2
 
 SIDES = ("back", "front", "left", "right", "up", "down")
 
@@ -80,7 +81,7 @@ def test_accel_calibration_six_sides(rig):
     rig.jig.hold(0.0, 0.0)
     gcs.step(0.5)
     acc = rig.sensor("vehicle_acceleration", 0)["xyz"]
-    assert abs(acc[0]) < 0.05 and abs(acc[1]) < 0.05 and abs(acc[2] + 9.80665) < 0.05
+    assert abs(acc[0]) < 0.05 and abs(acc[1]) < 0.05 and abs(acc[2] + G0_M_S2) < 0.05
     # saved
     saved = {n: params[n] for n in params.match("CAL_ACC*")}
     params.reset_all()

@@ -4,6 +4,7 @@ the turn)."""
 
 from __future__ import annotations
 
+from common.units import G0_M_S2
 import math
 
 import pytest
@@ -12,7 +13,6 @@ from board.fmu_v2 import TRUTH_KEYS
 from firmware.modules.commander.calibration.accel import fit_axis
 from firmware.modules.commander.calibration.level import tilt_deg
 from firmware.modules.commander.calibration.orientation import (
-    G0,
     MOTION,
     NOTHING,
     REST,
@@ -47,9 +47,9 @@ def test_detector_names_each_side_after_rest():
 
 def test_detector_reports_motion_and_no_side_while_moving():
     det = OrientationDetector()
-    events = [det.feed(i * 2500, (0.0, 0.0, -G0)) for i in range(200)]
+    events = [det.feed(i * 2500, (0.0, 0.0, -G0_M_S2)) for i in range(200)]
     assert events.count(REST) == 1
-    moving = [det.feed((200 + i) * 2500, (3.0 * math.sin(i / 10), 0.0, -G0))
+    moving = [det.feed((200 + i) * 2500, (3.0 * math.sin(i / 10), 0.0, -G0_M_S2))
               for i in range(800)]
     assert MOTION in moving
     assert not any(e >= 0 for e in moving)
@@ -57,9 +57,9 @@ def test_detector_reports_motion_and_no_side_while_moving():
 
 
 def test_tilt_of_a_level_and_a_rolled_body():
-    assert tilt_deg((0.0, 0.0, -G0)) == pytest.approx((0.0, 0.0))
+    assert tilt_deg((0.0, 0.0, -G0_M_S2)) == pytest.approx((0.0, 0.0))
     r = math.radians(10)
-    roll, pitch = tilt_deg((0.0, -G0 * math.sin(r), -G0 * math.cos(r)))
+    roll, pitch = tilt_deg((0.0, -G0_M_S2 * math.sin(r), -G0_M_S2 * math.cos(r)))
     assert roll == pytest.approx(10.0) and pitch == pytest.approx(0.0, abs=1e-9)
 
 
@@ -80,7 +80,7 @@ def test_jig_turn_rates_integrate_to_the_turn():
     recs = [r[2] for r in jig.outputs(0)]
     angle = sum(r[GYRO][1] for r in recs) * 1e-3
     assert angle == pytest.approx(math.pi / 2, rel=0.01)
-    assert recs[-1][ACC] == pytest.approx((G0, 0.0, 0.0), abs=1e-9)
+    assert recs[-1][ACC] == pytest.approx((G0_M_S2, 0.0, 0.0), abs=1e-9)
 
 
 class _StubWorld:
@@ -99,7 +99,7 @@ class _StubWorld:
             self.t_ns += 1_000_000
             rec = [None] * len(TRUTH_KEYS)
             rec[TRUTH_KEYS.index("t_ns")] = self.t_ns
-            rec[ACC] = (0.0, 0.0, -G0)
+            rec[ACC] = (0.0, 0.0, -G0_M_S2)
             rec[GYRO] = (0.0, 0.0, 0.0)
             rec[PRESSURE] = 95_000.0
             self._out.append(("truth", self.t_ns, tuple(rec)))
@@ -124,7 +124,7 @@ def test_jig_over_a_world_replaces_only_the_attitude():
     out = jig.outputs(0)
     truths = [r for r in out if r[0] == "truth"]
     assert [r[1] for r in truths] == [i * 1_000_000 for i in range(1, 21)]
-    assert truths[-1][2][ACC] == pytest.approx((0.0, G0, 0.0), abs=1e-9)
+    assert truths[-1][2][ACC] == pytest.approx((0.0, G0_M_S2, 0.0), abs=1e-9)
     assert all(r[2][PRESSURE] == 95_000.0 for r in truths)  # the world's, not the jig's
     assert ("battery", 20_000_000, (16.0, 1.0)) in out
     jig.input("esc1", 5, (1500, 2500))

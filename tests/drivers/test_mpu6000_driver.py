@@ -27,8 +27,8 @@ from firmware.platform.workqueue import WorkItem
 from peripherals.errors import rng_for
 from peripherals.mpu6000 import Mpu6000
 from peripherals.physics import Environment
+from common.units import G0_M_S2
 
-G0 = 9.80665
 
 
 class Rig:
@@ -88,7 +88,7 @@ def test_still_board_gravity_zero_rate_at_1khz() -> None:
     rig.run_s(1.0)
     assert len(rig.gyro) == pytest.approx(1000, rel=0.01)
     assert len(rig.accel) == len(rig.gyro)
-    assert mean(rig.accel, "z") == pytest.approx(-G0, abs=0.1)
+    assert mean(rig.accel, "z") == pytest.approx(-G0_M_S2, abs=0.1)
     assert abs(mean(rig.accel, "x")) < 0.1 and abs(mean(rig.accel, "y")) < 0.1
     for axis in "xyz":
         assert abs(mean(rig.gyro, axis)) < 0.01
@@ -130,7 +130,7 @@ def test_reads_twenty_records_every_2500_us_at_400_hz() -> None:
     assert {m.samples for m in rig.gyro} == {20}
     stamps = [m.timestamp_sample for m in rig.gyro]
     assert {b - a for a, b in pairwise(stamps)} == {2500}
-    assert mean(rig.accel, "z") == pytest.approx(-G0, abs=0.1)
+    assert mean(rig.accel, "z") == pytest.approx(-G0_M_S2, abs=0.1)
     assert rig.driver.perf_bad_transfer.events == 0  # 2.5 accel readings per read are fine
     assert "20 records" in rig.driver.status()
 
@@ -155,7 +155,7 @@ def test_polls_at_1khz_without_a_drdy_pin() -> None:
     rig = Rig(pin=False).started()
     rig.run_s(0.5)
     assert len(rig.gyro) == pytest.approx(500, rel=0.01)
-    assert mean(rig.accel, "z") == pytest.approx(-G0, abs=0.1)
+    assert mean(rig.accel, "z") == pytest.approx(-G0_M_S2, abs=0.1)
 
 
 # -- refusing to start -------------------------------------------------------------------------
@@ -193,7 +193,7 @@ def test_absent_then_back() -> None:
     rig.chip.faults.absent = False
     rig.run_s(1.5)
     assert d.state == FIFO_READ and rig.gyro[-1].error_count == d.error_count
-    assert mean(rig.accel[-100:], "z") == pytest.approx(-G0, abs=0.1)
+    assert mean(rig.accel[-100:], "z") == pytest.approx(-G0_M_S2, abs=0.1)
 
 
 def test_wrong_id_at_run_time_resets_and_reports() -> None:

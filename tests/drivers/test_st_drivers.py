@@ -18,7 +18,8 @@ from firmware.platform.workqueue import WorkItem
 from peripherals.errors import rng_for
 from peripherals.l3gd20 import L3gd20
 from peripherals.lsm303d import Lsm303d
-from peripherals.physics import G0, Environment
+from peripherals.physics import Environment
+from common.units import G0_M_S2
 
 MS = 1_000_000
 
@@ -88,7 +89,7 @@ def test_still_level_board_rates_and_values() -> None:
         assert abs(_mean(gyro, axis)) < 0.02       # rad/s: zero rate within bias/noise
         assert 0.003 < statistics.pstdev(getattr(m, axis) for m in gyro) < 0.03
     assert abs(_mean(accel, "x")) < 0.4 and abs(_mean(accel, "y")) < 0.4
-    assert abs(_mean(accel, "z") + G0) < 0.4
+    assert abs(_mean(accel, "z") + G0_M_S2) < 0.4
     for axis, want in zip("xyz", b.env.mag_gauss):
         assert abs(_mean(mag, axis) - want) < 0.03
     assert gyro[-1].temperature == 35.0 and accel[-1].temperature == 35.0
@@ -115,7 +116,7 @@ def test_rotating_board() -> None:
     b = Board()
     rate = (0.5, -1.0, 2.0)
     b.env.gyro_rad_s = rate
-    b.env.accel_m_s2 = (1.0, 2.0, -G0)
+    b.env.accel_m_s2 = (1.0, 2.0, -G0_M_S2)
     b.start()
     b.run_ms(200)
     t0 = b.platform.time_us()

@@ -14,6 +14,7 @@ from firmware.platform import Platform
 from firmware.platform.msgdef import MessageRegistry, parse_msg
 
 import pyulog  # noqa: E402 - a dependency of the package
+from common.units import G0_M_S2
 
 MS = 1_000_000  # ns
 
@@ -38,7 +39,7 @@ def accel_publisher(k, p, period_ms=2, instances=1, until_ms=1000):
             msg.timestamp = t
             msg.timestamp_sample = t - 100
             msg.device_id = 0x100 + i
-            msg.x, msg.y, msg.z = t / 1e6, 0.1 * i, -9.80665
+            msg.x, msg.y, msg.z = t / 1e6, 0.1 * i, -G0_M_S2
             msg.clip_counter = [i, 0, t % 7]
             pb.publish(msg)
             sent.append((i, t))
@@ -62,7 +63,7 @@ def test_published_values_come_back_exactly(tmp_path):
     assert list(d["timestamp"]) == ts
     assert list(d["timestamp_sample"]) == [t - 100 for t in ts]
     np.testing.assert_array_equal(d["x"], (np.array(ts) / 1e6).astype(np.float32))
-    assert set(d["z"]) == {np.float32(-9.80665)}
+    assert set(d["z"]) == {np.float32(-G0_M_S2)}
     assert list(d["clip_counter[2]"]) == [t % 7 for t in ts]
     assert set(d["device_id"]) == {0x100}
     assert u.start_timestamp == 0

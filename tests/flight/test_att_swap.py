@@ -15,7 +15,7 @@ import re
 import pytest
 
 from firmware.modules.mc_att_control.mc_att_control import attitude_error_rates
-from firmware.modules.mc_att_control.quat import qfrom_euler, qmul
+from common.quaternion import q_from_euler, q_mul
 from firmware.modules.mc_att_control_so3.so3 import so3_error, yaw_feed_forward_body
 from firmware.modules.mc_att_select import IMPLS, PARAMS as SELECT_PARAMS
 from firmware.platform.module import ModuleBase, ModuleError
@@ -34,10 +34,10 @@ MS = 1_000_000
 def test_so3_error_is_sin_angle_times_axis_in_body_axes():
     for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (0.6, 0.0, 0.8)):
         for angle in (0.01, 0.3, 1.2, 2.5):
-            q = qfrom_euler(0.2, -0.1, 1.0)
+            q = q_from_euler(0.2, -0.1, 1.0)
             s = math.sin(0.5 * angle)
             rot = (math.cos(0.5 * angle), axis[0] * s, axis[1] * s, axis[2] * s)
-            qd = qmul(q, rot)          # the desired attitude: q turned by angle about a body axis
+            qd = q_mul(q, rot)          # the desired attitude: q turned by angle about a body axis
             e = so3_error(q, qd)
             want = tuple(math.sin(angle) * a for a in axis)
             assert e == pytest.approx(want, abs=1e-12), (axis, angle)
@@ -48,10 +48,10 @@ def test_so3_error_is_sin_angle_times_axis_in_body_axes():
 def test_so3_and_quaternion_laws_agree_for_small_errors_only():
     """For a small tilt error both laws give the rotation vector; at 60 degrees of roll error
     the SO(3) error (sin 60 = 0.87) is below PX4's (2 sin 30 = 1.0): another law."""
-    q = qfrom_euler(0.0, 0.0, 0.5)
-    small = qmul(q, qfrom_euler(0.02, -0.01, 0.0))
+    q = q_from_euler(0.0, 0.0, 0.5)
+    small = q_mul(q, q_from_euler(0.02, -0.01, 0.0))
     assert so3_error(q, small) == pytest.approx(attitude_error_rates(q, small, 1.0), abs=1e-5)
-    big = qmul(q, qfrom_euler(math.radians(60.0), 0.0, 0.0))
+    big = q_mul(q, q_from_euler(math.radians(60.0), 0.0, 0.0))
     assert so3_error(q, big)[0] == pytest.approx(math.sin(math.radians(60.0)), abs=1e-9)
     assert attitude_error_rates(q, big, 1.0)[0] == pytest.approx(2.0 * math.sin(math.radians(30.0)),
                                                                 abs=1e-9)
@@ -60,7 +60,7 @@ def test_so3_and_quaternion_laws_agree_for_small_errors_only():
 def test_yaw_feed_forward_is_the_world_yaw_rate_in_body_axes():
     assert yaw_feed_forward_body((1.0, 0.0, 0.0, 0.0), 0.5) == pytest.approx((0.0, 0.0, 0.5))
     # rolled 90 degrees right: the right wing (body +y) points down
-    r90 = qfrom_euler(math.pi / 2, 0.0, 0.3)
+    r90 = q_from_euler(math.pi / 2, 0.0, 0.3)
     assert yaw_feed_forward_body(r90, 0.5) == pytest.approx((0.0, 0.5, 0.0), abs=1e-12)
 
 

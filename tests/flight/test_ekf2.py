@@ -20,7 +20,7 @@ from board.fmu_v2 import FmuV2Board
 from firmware.modules.ekf2 import PARAMS as EKF_PARAMS
 from firmware.modules.ekf2 import Ekf2Module
 from firmware.modules.ekf2.gps import LocalProjection
-from firmware.modules.ekf2.quat import q_mul, q_to_euler
+from common.quaternion import q_mul, q_to_euler
 from firmware.modules.sensors import PARAMS as SENSORS_PARAMS
 from firmware.modules.sensors import SensorsModule
 from firmware.platform.params import Params

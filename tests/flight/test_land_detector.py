@@ -10,8 +10,8 @@ from firmware.modules.land_detector.land_detector import Hysteresis
 from firmware.platform import Platform
 from firmware.platform.params import Params
 from firmware.system import System
+from common.units import G0_M_S2
 
-G = 9.80665
 
 
 class Bench:
@@ -102,7 +102,7 @@ def test_free_fall():
     b = Bench()
     b.set("actuator_armed", armed=True)
     b.set("actuator_controls_0", control=[0.0, 0.0, 0.0, 0.6, 0, 0, 0, 0])
-    b.set("vehicle_local_position", az=G, vz=3.0)   # specific force 0: falling
+    b.set("vehicle_local_position", az=G0_M_S2, vz=3.0)   # specific force 0: falling
     b.run(0.2)
     assert not b.state.freefall
     b.run(0.3)

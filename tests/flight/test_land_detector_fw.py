@@ -9,8 +9,8 @@ from firmware.modules.land_detector import LandDetectorModule
 from firmware.platform import Platform
 from firmware.platform.params import Params
 from firmware.system import System
+from common.units import G0_M_S2
 
-G = 9.80665
 
 
 class FwBench:
@@ -28,7 +28,7 @@ class FwBench:
         orb = p.orb
         self.pubs = {t: orb.advertise(t) for t in self.TOPICS}
         self.msgs = {t: orb.new(t) for t in self.TOPICS}
-        self.msgs["vehicle_acceleration"].xyz = [0.0, 0.0, -G]
+        self.msgs["vehicle_acceleration"].xyz = [0.0, 0.0, -G0_M_S2]
         self.silent: set[str] = set()
         self.start_rc = self.system.modules.start("land_detector", [kind])
         self.t_ns = 0
@@ -96,7 +96,7 @@ def test_launch_jolt_is_flight_before_any_speed() -> None:
     b.fly(0.0)
     b.run(1.0)
     assert b.landed
-    b.set("vehicle_acceleration", xyz=[30.0, 0.0, -G])  # catapult: 3 g forwards
+    b.set("vehicle_acceleration", xyz=[30.0, 0.0, -G0_M_S2])  # catapult: 3 g forwards
     b.run(0.1)
     assert not b.landed
 

@@ -15,7 +15,7 @@ import time
 import pytest
 
 from firmware.modules.mc_att_control.mc_att_control import attitude_error_rates
-from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
+from common.quaternion import q_from_euler, q_to_euler
 from firmware.modules.mc_pos_control.flight_tasks import (
     SP_LAND,
     SP_POSITION,
@@ -25,6 +25,7 @@ from firmware.modules.mc_pos_control.flight_tasks import (
 from firmware.modules.mc_pos_control.hover_thrust_estimator import HoverThrustEstimator
 from firmware.modules.mc_pos_control.position_control import PositionControl, attitude_from_thrust
 from tests.flight.truth_estimator import FlightRig
+from common.units import G0_M_S2
 
 #: F450 tuning (JSBSim model: 1.4 kg, hover throttle ~0.51, ESC + rotor lag ~70 ms). Measured
 #: open loop: 295 rad/s^2 per unit roll/pitch control, 38 rad/s^2 per unit yaw control,
@@ -38,7 +39,6 @@ F450_PARAMS: dict[str, float] = {
     "MPC_TKO_RAMP_T": 1.5,
 }
 
-G = 9.80665
 
 
 # -- the mission ------------------------------------------------------------------------------
@@ -238,25 +238,25 @@ def test_stabilized_roll_step_response():
 
 
 def test_attitude_error_is_tilt_first():
-    q = qfrom_euler(0.0, 0.0, 0.0)
-    ex, ey, ez = attitude_error_rates(q, qfrom_euler(0.2, 0.0, 0.0), 0.4)
+    q = q_from_euler(0.0, 0.0, 0.0)
+    ex, ey, ez = attitude_error_rates(q, q_from_euler(0.2, 0.0, 0.0), 0.4)
     # the error is 2 sin(angle / 2) about the axis
     assert ex == pytest.approx(2.0 * math.sin(0.1), abs=1e-9) and abs(ey) < 1e-9 \
         and abs(ez) < 1e-9
     # a pure heading error is scaled by the yaw weight
-    ex, ey, ez = attitude_error_rates(q, qfrom_euler(0.0, 0.0, 0.5), 0.4)
+    ex, ey, ez = attitude_error_rates(q, q_from_euler(0.0, 0.0, 0.5), 0.4)
     assert ez == pytest.approx(0.2, abs=1e-3) and abs(ex) < 1e-9
     # with both, the tilt part is the full tilt error whatever the heading error
-    ex, ey, _ez = attitude_error_rates(q, qfrom_euler(0.2, 0.0, 1.5), 0.4)
+    ex, ey, _ez = attitude_error_rates(q, q_from_euler(0.2, 0.0, 1.5), 0.4)
     assert math.hypot(ex, ey) == pytest.approx(2.0 * math.sin(0.1), abs=0.01)
 
 
 def test_attitude_from_thrust():
     q = attitude_from_thrust(0.0, 0.0, -0.5, 0.3)
-    r, p, y = qto_euler(q)
+    r, p, y = q_to_euler(q)
     assert abs(r) < 1e-9 and abs(p) < 1e-9 and y == pytest.approx(0.3)
     # thrust tilted north at heading 0: nose down (negative pitch)
-    r, p, y = qto_euler(attitude_from_thrust(0.5 * math.tan(0.2), 0.0, -0.5, 0.0))
+    r, p, y = q_to_euler(attitude_from_thrust(0.5 * math.tan(0.2), 0.0, -0.5, 0.0))
     assert p == pytest.approx(-0.2) and abs(r) < 1e-9
 
 
@@ -290,6 +290,6 @@ def test_hover_thrust_estimator_converges():
     true_h = 0.55
     for i in range(3000):
         thrust = 0.55 + 0.05 * math.sin(i * 0.01)
-        az = G * (1.0 - thrust / true_h)
+        az = G0_M_S2 * (1.0 - thrust / true_h)
         hte.update(0.01, az, thrust)
     assert hte.valid and hte.hover == pytest.approx(true_h, abs=0.01)

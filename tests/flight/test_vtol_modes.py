@@ -15,7 +15,8 @@ import pytest
 from firmware.modules.commander.vehicle_type import vtol_type
 from firmware.modules.navigator.geo import distance_m, offset_deg
 from tests.flight.test_commander import HOME, Rig, _fly_in
-from tests.flight.test_land_detector_fw import G, FwBench
+from tests.flight.test_land_detector_fw import FwBench
+from common.units import G0_M_S2
 from tests.flight.test_navigator import (
     MISSION,
     SP_LAND,
@@ -145,7 +146,7 @@ def test_a_vtol_on_the_wing_is_never_landed() -> None:
     assert b.start_rc == 0
     b.set("actuator_armed", armed=True)
     b.set("vehicle_control_mode", flag_control_climb_rate_enabled=True)
-    b.set("vehicle_local_position", vx=0.0, vy=0.0, vz=0.0, az=-G)   # rotors off, at rest
+    b.set("vehicle_local_position", vx=0.0, vy=0.0, vz=0.0, az=-G0_M_S2)   # rotors off, at rest
     b.set("vehicle_status", is_vtol=True, vehicle_type=FIXED_WING)
     b.run(2.0)
     assert not b.landed                  # low thrust, no motion, but on the wing: flying

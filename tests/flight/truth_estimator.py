@@ -20,10 +20,10 @@ from firmware.modules.mc_pos_control.geo import MapProjection
 from firmware.platform import Platform
 from firmware.platform.workqueue import WorkItem
 from hil.world.truth import Truth
+from common.units import G0_M_S2
 
 __all__ = ["TruthEstimator"]
 
-G = 9.80665
 
 
 class TruthEstimator(WorkItem):
@@ -86,7 +86,7 @@ class TruthEstimator(WorkItem):
         tz = 2.0 * (qx * fy - qy * fx)
         lp.ax = fx + w * tx + (qy * tz - qz * ty)
         lp.ay = fy + w * ty + (qz * tx - qx * tz)
-        lp.az = fz + w * tz + (qx * ty - qy * tx) + G
+        lp.az = fz + w * tz + (qx * ty - qy * tx) + G0_M_S2
         lp.heading = tr.euler_rad[2]
         lp.xy_valid = lp.z_valid = lp.v_xy_valid = lp.v_z_valid = True
         lp.xy_global = lp.z_global = True

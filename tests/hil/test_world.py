@@ -6,8 +6,8 @@ import pytest
 
 from hil.world import Battery, BatteryParams, Esc, EscParams, World
 from hil.world.atmosphere import isa_pressure_pa
+from common.units import G0_M_S2
 
-G0 = 9.80665
 MS = 1_000_000  # ns
 
 
@@ -47,7 +47,7 @@ def test_rest_on_ground(rest):
 def test_rest_specific_force_points_up_in_frd(rest):
     for tr in rest:  # already valid at t = 0
         ax, ay, az = tr.accel_body_m_s2
-        assert abs(norm(tr.accel_body_m_s2) - G0) < 0.05
+        assert abs(norm(tr.accel_body_m_s2) - G0_M_S2) < 0.05
         assert az < -9.75  # accelerometer z reads -g when level at rest (PX4 FRD)
         assert abs(ax) < 0.01 and abs(ay) < 0.01
         assert norm(tr.gyro_rad_s) < 1e-3  # only the Earth's rotation (7.3e-5 rad/s)
@@ -89,7 +89,7 @@ def test_pressure_and_temperature_isa(rest):
     _, tr = rest
     h = tr.alt_m
     # barometric formula, troposphere (geometric altitude; geopotential differs by 0.04 m)
-    p_isa = 101325.0 * (1.0 - 0.0065 * h / 288.15) ** (G0 * 0.0289644 / (8.3144598 * 0.0065))
+    p_isa = 101325.0 * (1.0 - 0.0065 * h / 288.15) ** (G0_M_S2 * 0.0289644 / (8.3144598 * 0.0065))
     assert abs(tr.pressure_pa - p_isa) < 5.0
     assert abs(tr.pressure_pa - isa_pressure_pa(h)) < 2.0
     assert abs(tr.pressure_pa - 95600.0) < 50.0
@@ -186,7 +186,7 @@ def test_motors_off_in_air_falls_then_rests():
     tr = w.truth()
     assert abs(tr.vel_ned_m_s[2]) < 0.02
     assert 0.10 < tr.agl_m < 0.16 and abs(alt0 - tr.alt_m - 2.0) < 0.05
-    assert abs(norm(tr.accel_body_m_s2) - G0) < 0.05
+    assert abs(norm(tr.accel_body_m_s2) - G0_M_S2) < 0.05
 
 
 def test_signal_loss_in_flight_stops_motors():

@@ -11,7 +11,8 @@ from board.kernel import Kernel
 from board.spi import SpiBus
 from peripherals.errors import AxisErrors, rng_for
 from peripherals.lsm303d import Lsm303d
-from peripherals.physics import G0, Environment
+from peripherals.physics import Environment
+from common.units import G0_M_S2
 
 #: Reset values from the sheet's register table (3.3) including its [?] items.
 RESET_VALUES = {
@@ -85,7 +86,7 @@ def test_id_read_bit_and_auto_increment(rig: Rig) -> None:
 @pytest.mark.parametrize("afs, counts", [(0, 16393), (1, 8197), (2, 5464), (3, 4098),
                                          (4, 1366)])
 def test_accel_scale_per_range(rig: Rig, afs: int, counts: int) -> None:
-    rig.env.accel_m_s2 = (G0, 0.0, -G0 / 2 if afs == 0 else -G0)
+    rig.env.accel_m_s2 = (G0_M_S2, 0.0, -G0_M_S2 / 2 if afs == 0 else -G0_M_S2)
     rig.wr(0x21, afs << 3)
     rig.wr(0x20, 0xA7)                                    # 1600 Hz, XYZ
     rig.run_ms(1)
@@ -94,7 +95,7 @@ def test_accel_scale_per_range(rig: Rig, afs: int, counts: int) -> None:
 
 
 def test_sheet_example_one_g_at_16g(rig: Rig) -> None:
-    rig.env.accel_m_s2 = (G0, 0.0, 0.0)
+    rig.env.accel_m_s2 = (G0_M_S2, 0.0, 0.0)
     rig.wr(0x21, 0x20)
     rig.wr(0x20, 0xA7)
     rig.run_ms(1)
@@ -186,12 +187,12 @@ def test_status_a_and_status_m(rig: Rig) -> None:
 
 
 def test_bdu(rig: Rig) -> None:
-    rig.env.accel_m_s2 = (G0, 0.0, 0.0)               # 1366 = 0x0556
+    rig.env.accel_m_s2 = (G0_M_S2, 0.0, 0.0)               # 1366 = 0x0556
     rig.wr(0x21, 0x20)
     rig.wr(0x20, 0xAF)                                # 1600 Hz, BDU
     rig.run_ms(0.7)
     assert rig.rd(0x28) == 0x56
-    rig.env.accel_m_s2 = (4 * G0, 0.0, 0.0)           # 5464 = 0x1558
+    rig.env.accel_m_s2 = (4 * G0_M_S2, 0.0, 0.0)           # 5464 = 0x1558
     rig.run_ms(2)
     assert rig.rd(0x29) == 0x05                       # same sample as the L byte
     rig.run_ms(1)
@@ -199,7 +200,7 @@ def test_bdu(rig: Rig) -> None:
 
 
 def test_fifo_px4_burst_and_overrun(rig: Rig) -> None:
-    rig.env.accel_m_s2 = (G0, 0.0, 0.0)
+    rig.env.accel_m_s2 = (G0_M_S2, 0.0, 0.0)
     rig.wr(0x21, 0x20)
     rig.wr(0x1F, 0x40)                                 # FIFO_EN
     rig.wr(0x2E, 0x20 | 4)                             # FIFO mode, FTH 4
@@ -254,7 +255,7 @@ def test_boot_restores_reset_values(rig: Rig) -> None:
 
 
 def test_faults(rig: Rig) -> None:
-    rig.env.accel_m_s2 = (G0, 0.0, 0.0)
+    rig.env.accel_m_s2 = (G0_M_S2, 0.0, 0.0)
     rig.wr(0x21, 0x20)
     rig.wr(0x20, 0xA7)
     rig.chip.faults.wrong_id = 0x00
@@ -267,14 +268,14 @@ def test_faults(rig: Rig) -> None:
     rig.run_ms(1)
     assert rig.accel() == (32767, 32767, 32767)
     rig.chip.faults.clear()
-    rig.chip.faults.bias_step = (G0, 0.0, 0.0)
+    rig.chip.faults.bias_step = (G0_M_S2, 0.0, 0.0)
     rig.run_ms(1)
     assert rig.accel()[0] == 2732
     rig.chip.faults.clear()
     rig.chip.faults.frozen = True
     rig.run_ms(1)
     before = rig.accel()
-    rig.env.accel_m_s2 = (0.0, G0, 0.0)
+    rig.env.accel_m_s2 = (0.0, G0_M_S2, 0.0)
     rig.run_ms(3)
     assert rig.accel() == before
     rig.chip.faults.clear()

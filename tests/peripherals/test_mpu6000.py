@@ -21,10 +21,10 @@ from peripherals.errors import AxisErrors, rng_for
 from peripherals.mpu6000 import Mpu6000
 from peripherals.mpu6000.registers import SELF_TEST_TRIM
 from peripherals.physics import Environment
+from common.units import G0_M_S2
 
 REFERENCE = Path(__file__).resolve().parents[3] / "shared" / "fixtures" / "mpu6000" / \
     "mpu6000_register_reference.json"
-G0 = 9.80665
 DEG = 0.017453292519943295
 
 
@@ -198,7 +198,7 @@ def test_clock_stop_produces_nothing(c: Chip) -> None:
 
 @pytest.mark.parametrize("afs_sel, counts", [(0, 16384), (1, 8192), (2, 4096), (3, 2048)])
 def test_accel_scale(c: Chip, afs_sel: int, counts: int) -> None:
-    c.env.accel_m_s2 = (0.0, 0.0, G0)
+    c.env.accel_m_s2 = (0.0, 0.0, G0_M_S2)
     c.wake(ACCEL_CONFIG=afs_sel << 3)
     c.run_ms(2)
     assert c.data()[:3] == (0, 0, counts)
@@ -206,7 +206,7 @@ def test_accel_scale(c: Chip, afs_sel: int, counts: int) -> None:
 
 def test_rev_c_doubles_accel_sensitivity() -> None:
     c = Chip(product_id=0x54)
-    c.env.accel_m_s2 = (0.0, 0.0, G0)
+    c.env.accel_m_s2 = (0.0, 0.0, G0_M_S2)
     c.wake(ACCEL_CONFIG=0x18)
     c.run_ms(2)
     assert c.data()[2] == 4096
@@ -222,7 +222,7 @@ def test_gyro_scale(c: Chip, fs_sel: int, counts: int) -> None:
 
 def test_saturation_at_the_rails(c: Chip) -> None:
     c.env.gyro_rad_s = (300 * DEG, -300 * DEG, 0.0)
-    c.env.accel_m_s2 = (0.0, 0.0, -3 * G0)
+    c.env.accel_m_s2 = (0.0, 0.0, -3 * G0_M_S2)
     c.wake()  # +-250 deg/s, +-2 g
     c.run_ms(2)
     _, _, az, _, gx, gy, _ = c.data()
@@ -317,7 +317,7 @@ def test_int_status_read_to_clear_and_int_rd_clear(c: Chip) -> None:
 
 
 def test_legacy_burst_from_int_status(c: Chip) -> None:
-    c.env.accel_m_s2 = (0.0, 0.0, G0)
+    c.env.accel_m_s2 = (0.0, 0.0, G0_M_S2)
     c.wake(ACCEL_CONFIG=0x18)
     c.run_ms(1)
     rx = c.xfer(b"\xba" + bytes(15))  # legacy PX4: INT_STATUS then the 14 data bytes
@@ -335,7 +335,7 @@ def test_no_kernel_events_when_nobody_can_see_samples(c: Chip) -> None:
 # -- FIFO --------------------------------------------------------------------------------------
 
 def test_fifo_fill_rate_and_record_layout(c: Chip) -> None:
-    c.env.accel_m_s2 = (0.0, 0.0, G0)
+    c.env.accel_m_s2 = (0.0, 0.0, G0_M_S2)
     c.env.gyro_rad_s = (100 * DEG, 0.0, 0.0)
     c.wake(ACCEL_CONFIG=0x18, FIFO_EN=0x78, USER_CTRL=0x40)
     c.run_ms(1)
@@ -358,7 +358,7 @@ def test_fifo_overflow_keeps_the_newest_bytes(c: Chip) -> None:
 
 
 def test_fifo_reset_and_sig_cond_reset(c: Chip) -> None:
-    c.env.accel_m_s2 = (0.0, 0.0, G0)
+    c.env.accel_m_s2 = (0.0, 0.0, G0_M_S2)
     c.wake(FIFO_EN=0x08, USER_CTRL=0x40)
     c.run_ms(1)
     c.wr(0x6A, 0x44)

@@ -11,10 +11,10 @@ from hil.world import EscParams, World
 from hil.world.fdm import AIRFRAMES, Motor, Servo
 from hil.world.trim import trim_hover, trim_level
 from hil.worldlink import WorldPorts
+from common.units import G0_M_S2
 
 MC_PERIOD_NS = 2_500_000  # 400 Hz, PX4's multicopter PWM rate (MAIN)
 SERVO_PERIOD_NS = 20_000_000  # 50 Hz (AUX)
-G = 9.80665
 
 
 def _apply(w: World, widths: dict[int, float], first: dict[int, float] | None = None) -> None:
@@ -48,7 +48,7 @@ def test_aux_port_moves_the_elevator() -> None:
 def test_hover_trim_holds_the_weight() -> None:
     h = trim_hover("quadplane")
     assert h.residual < 1e-3
-    assert 4 * h.thrust_per_rotor_n == pytest.approx(3.5 * G, rel=0.01)
+    assert 4 * h.thrust_per_rotor_n == pytest.approx(3.5 * G0_M_S2, rel=0.01)
     assert 0.4 < h.throttle < 0.75 and 4000 < h.rpm < 7000
     assert 15.0 < h.battery_current_a < 40.0  # ~430 W
     w = World(airframe="quadplane", agl_m=30.0, esc_params=EscParams(arm_low_s=0.0))

@@ -41,6 +41,7 @@ from firmware.drivers.imu.st_spi_driver import (
 )
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
+from common.units import G0_M_S2
 
 __all__ = [
     "DRV_ACC_DEVTYPE_LSM303D",
@@ -99,7 +100,7 @@ ACCEL_INTERVAL_US: Final = 2500
 SAMPLES_PER_CYCLE: Final = ACCEL_ODR_HZ * ACCEL_INTERVAL_US // 1_000_000   # 4 -> FIFO threshold
 MAG_INTERVAL_US: Final = 20_000
 CHECK_INTERVAL_US: Final = 100_000
-ACCEL_SCALE_M_S2: Final = 0.732e-3 * 9.80665       # +-16 g: 0.732 mg/LSB
+ACCEL_SCALE_M_S2: Final = 0.732e-3 * G0_M_S2       # +-16 g: 0.732 mg/LSB
 MAG_SCALE_GAUSS: Final = 0.479e-3                  # +-12 gauss: 0.479 mgauss/LSB
 BOOT_WAIT_US: Final = 150_000
 

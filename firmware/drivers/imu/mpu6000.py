@@ -40,6 +40,7 @@ from firmware.drivers.device import BUS_TYPE_SPI, DeviceId, SensorDriver
 from firmware.drivers.imu import rotation_matrix
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT
+from common.units import G0_M_S2
 
 __all__ = ["DRV_IMU_DEVTYPE_MPU6000", "PRODUCT_IDS", "Mpu6000Driver", "fifo_records_per_read",
            "gyro_rate_limit"]
@@ -116,7 +117,7 @@ MAX_RECORDS: Final = FIFO_SIZE // RECORD_BYTES
 RECORD_US: Final = 1_000_000 // SAMPLE_RATE_HZ
 #: Records per read at most: PX4's ``sensor_gyro_fifo`` holds 32 samples.
 FIFO_MAX_SAMPLES: Final = 32
-ACCEL_SCALE: Final = 9.80665 / 2048.0
+ACCEL_SCALE: Final = G0_M_S2 / 2048.0
 GYRO_SCALE: Final = math.radians(2000.0 / 32768.0)
 REG_CLOCK_HZ: Final = 1_000_000
 DATA_CLOCK_HZ: Final = 20_000_000

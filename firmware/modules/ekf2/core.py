@@ -29,12 +29,12 @@ from typing import Final
 
 import numpy as np
 
-from firmware.modules.ekf2.quat import Quat, dcm, q_from_rotvec, q_mul, q_norm, q_yaw
+from common.quaternion import Quat, dcm, q_from_rotvec, q_mul, q_norm, q_yaw
+from common.units import G0_M_S2
 
-__all__ = ["G_M_S2", "N_STATES", "Ekf", "NoiseParams"]
+__all__ = ["N_STATES", "Ekf", "NoiseParams"]
 
 N_STATES: Final = 15
-G_M_S2: Final = 9.80665
 I_THETA: Final = 0
 I_VEL: Final = 3
 I_POS: Final = 6
@@ -146,7 +146,7 @@ class Ekf:
         self.q = q = q_norm(q_mul(self.q, q_from_rotvec(wx, wy, wz)))
         self.R = dcm(q)
         vn0, ve0, vd0 = self.vn, self.ve, self.vd
-        gdt = G_M_S2 * dt
+        gdt = G0_M_S2 * dt
         self.vn = vn = vn0 + dn
         self.ve = ve = ve0 + de
         self.vd = vd = vd0 + dd + gdt
@@ -155,7 +155,7 @@ class Ekf:
         self.pe += (ve0 + ve) * h
         self.pd += (vd0 + vd) * h
         inv = 1.0 / dt if dt > 0.0 else 0.0
-        self.acc_ned = (dn * inv, de * inv, dd * inv + G_M_S2)
+        self.acc_ned = (dn * inv, de * inv, dd * inv + G0_M_S2)
         self._acc_dt += dt
         self._acc_dvn += dn
         self._acc_dve += de

@@ -53,9 +53,10 @@ from firmware.modules.ekf2.aiding import (
 from firmware.modules.ekf2.core import I_POS, I_THETA, I_VEL, Ekf, NoiseParams
 from firmware.modules.ekf2.gps import GpsChecks, LocalProjection
 from firmware.modules.ekf2.params import PARAMS
-from firmware.modules.ekf2.quat import Quat, dcm, q_from_euler, q_to_euler, q_yaw, wrap_pi
+from common.quaternion import Quat, dcm, q_from_euler, q_to_euler, q_yaw, wrap_pi
 from firmware.modules.ekf2.status import fill_estimator_status
 from firmware.platform.module import WorkItemModule
+from common.units import G0_M_S2
 
 __all__ = ["Ekf2Module"]
 
@@ -213,7 +214,7 @@ class Ekf2Module(WorkItemModule):
             return
         n = al[0]
         ax, ay, az = al[1] / n, al[2] / n, al[3] / n
-        if abs(math.sqrt(ax * ax + ay * ay + az * az) - 9.80665) > 2.0:
+        if abs(math.sqrt(ax * ax + ay * ay + az * az) - G0_M_S2) > 2.0:
             al[:] = [0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0]  # not at rest: again
             return
         roll = math.atan2(-ay, -az)

@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import math
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["RateLoop", "coordinated_yaw_rate", "euler_rates_to_body"]
 
-G: Final = 9.80665
 
 
 class RateLoop:
@@ -65,7 +65,7 @@ def coordinated_yaw_rate(roll: float, pitch: float, airspeed_m_s: float) -> floa
     """The heading rate (rad/s) of a turn without sideslip at this bank and airspeed."""
     if abs(roll) > 0.5 * math.pi - 0.05:  # knife edge or inverted: no coordinated turn
         return 0.0
-    return math.tan(roll) * math.cos(pitch) * G / max(airspeed_m_s, 1.0)
+    return math.tan(roll) * math.cos(pitch) * G0_M_S2 / max(airspeed_m_s, 1.0)
 
 
 def euler_rates_to_body(roll: float, pitch: float, roll_dot: float, pitch_dot: float,

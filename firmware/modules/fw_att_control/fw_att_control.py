@@ -43,7 +43,7 @@ from firmware.modules.fw_att_control.ecl import (
     euler_rates_to_body,
 )
 from firmware.modules.fw_att_control.params import ATT_PARAMS, SHARED_PARAMS
-from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
+from common.quaternion import q_from_euler, q_to_euler
 from firmware.platform.module import WorkItemModule
 from firmware.platform.params import ParamDef
 from firmware.platform.uorb import Publication
@@ -215,7 +215,7 @@ class FwAttControlModule(WorkItemModule):
         if self.mode == MODE_AUTO:
             sp = self.sub_att_sp.update()
             if sp is not None:
-                r, pt, y = qto_euler(tuple(sp.q_d))  # type: ignore[arg-type]
+                r, pt, y = q_to_euler(tuple(sp.q_d))  # type: ignore[arg-type]
                 self.roll_sp, self.pitch_sp, self.yaw_sp = r, pt, y
                 self.throttle_sp = float(sp.thrust_body[0])
                 self.wheel = bool(sp.fw_control_yaw_wheel)
@@ -235,7 +235,7 @@ class FwAttControlModule(WorkItemModule):
         m = self.att_sp_msg
         m.timestamp = self.platform.hrt.absolute_time()
         m.roll_body, m.pitch_body, m.yaw_body = self.roll_sp, self.pitch_sp, math.nan
-        w, x, y, z = qfrom_euler(self.roll_sp, self.pitch_sp, 0.0)
+        w, x, y, z = q_from_euler(self.roll_sp, self.pitch_sp, 0.0)
         m.q_d[0], m.q_d[1], m.q_d[2], m.q_d[3] = w, x, y, z
         m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = self.throttle_sp, 0.0, 0.0
         self.pub_att_sp.publish(m)
@@ -287,7 +287,7 @@ class FwAttControlModule(WorkItemModule):
             return
         if self.mode == MODE_STABILIZED:
             self._stabilized_setpoint()
-        roll, pitch, yaw = qto_euler(tuple(att.q))  # type: ignore[arg-type]
+        roll, pitch, yaw = q_to_euler(tuple(att.q))  # type: ignore[arg-type]
         v = self.airspeed.indicated_m_s if self.airspeed.valid else self.v_trim
         v = _clamp(v, self.v_min, self.v_max)
         scaler = self.v_trim / v

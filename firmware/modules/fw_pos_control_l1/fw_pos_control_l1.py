@@ -50,9 +50,10 @@ from firmware.modules.fw_pos_control_l1.state import Out as _Out
 from firmware.modules.fw_pos_control_l1.state import State as _State
 from firmware.modules.fw_pos_control_l1.state import fill_tecs_status
 from firmware.modules.fw_pos_control_l1.takeoff import LaunchDetector, RunwayTakeoff
-from firmware.modules.mc_att_control.quat import qfrom_euler, qto_euler
+from common.quaternion import q_from_euler, q_to_euler
 from firmware.modules.mc_pos_control.geo import MapProjection
 from firmware.platform.module import WorkItemModule
+from common.units import G0_M_S2
 
 if TYPE_CHECKING:
     from firmware.system import System
@@ -60,7 +61,6 @@ if TYPE_CHECKING:
 __all__ = ["PARAMS", "FwPosControlL1Module"]
 
 _D2R: Final = math.pi / 180.0
-G: Final = 9.80665
 
 SP_POSITION: Final = 0
 SP_LOITER: Final = 2
@@ -200,7 +200,7 @@ class FwPosControlL1Module(WorkItemModule):
         m = self.sub_att.update()
         if m is not None:
             self.q = (float(m.q[0]), float(m.q[1]), float(m.q[2]), float(m.q[3]))
-            self.att = qto_euler(self.q)
+            self.att = q_to_euler(self.q)
         if self.sub_param.updated():
             self.sub_param.update()
             self._load_params()
@@ -440,7 +440,7 @@ class FwPosControlL1Module(WorkItemModule):
     def _specific_force_x(self, st: _State) -> float:
         """What an accelerometer on the body x axis reads: kinematic minus gravity's part."""
         w, x, y, z = self.q
-        return st.accel_x - G * 2.0 * (x * z - w * y)
+        return st.accel_x - G0_M_S2 * 2.0 * (x * z - w * y)
 
     def _land(self, st: _State, cur: Any, target: tuple[float, float],
               prev_ne: tuple[float, float]) -> _Out:
@@ -557,7 +557,7 @@ class FwPosControlL1Module(WorkItemModule):
         m = self.att_sp
         m.timestamp = now
         m.roll_body, m.pitch_body, m.yaw_body = out.roll, out.pitch, wrap_pi(out.yaw)
-        w, x, y, z = qfrom_euler(out.roll, out.pitch, m.yaw_body)
+        w, x, y, z = q_from_euler(out.roll, out.pitch, m.yaw_body)
         m.q_d[0], m.q_d[1], m.q_d[2], m.q_d[3] = w, x, y, z
         m.yaw_sp_move_rate = 0.0
         m.thrust_body[0], m.thrust_body[1], m.thrust_body[2] = out.throttle, 0.0, 0.0

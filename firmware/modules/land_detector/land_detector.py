@@ -31,6 +31,7 @@ from firmware.modules.land_detector.fixedwing import FW_PARAMS, FixedwingDetecto
 from firmware.platform.module import UsageError, WorkItemModule
 from firmware.platform.params import ParamDef
 from firmware.platform.uorb import Subscription
+from common.units import G0_M_S2
 
 if TYPE_CHECKING:
     from firmware.system import System
@@ -41,7 +42,6 @@ __all__ = ["KINDS", "PARAMS", "Hysteresis", "LandDetectorModule"]
 KINDS = ("multicopter", "fixedwing", "vtol")
 
 _G = "Land Detector"
-G = 9.80665
 
 
 def _p(name: str, default: float, lo: float, hi: float, short: str, unit: str = "",
@@ -231,7 +231,7 @@ class LandDetectorModule(WorkItemModule):
         in_descend = climb_ctl and vz_sp > 0.5 * self.z_vel_max
         hit_ground = in_descend and not vertical
         close = (not lp.dist_bottom_valid) or lp.dist_bottom < 1.0
-        fx, fy, fz = lp.ax, lp.ay, lp.az - G
+        fx, fy, fz = lp.ax, lp.ay, lp.az - G0_M_S2
         falling = fx * fx + fy * fy + fz * fz < self.ffall_thr * self.ffall_thr
 
         gc = not horizontal and (hit_ground or (low_thrust and not vertical))

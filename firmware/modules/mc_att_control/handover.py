@@ -24,7 +24,8 @@ __all__ = ["ATT_CONTROLLERS", "HANDOVER_MAX_AGE_US", "HANDOVER_TAU_S", "Handover
            "other_att_controller"]
 
 #: the attitude controllers by their MC_ATT_IMPL number: at most one may run
-ATT_CONTROLLERS: Final[dict[int, str]] = {0: "mc_att_control", 1: "mc_att_control_so3"}
+ATT_CONTROLLERS: Final[dict[int, str]] = {0: "mc_att_control", 1: "mc_att_control_so3",
+                                          2: "mc_att_companion"}
 
 #: a previous rate setpoint older than this is not continued from (the old controller
 #: stopped long ago, or there was none): 25 attitude periods at 250 Hz

@@ -32,13 +32,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, ClassVar, Final
 
 from firmware.modules.mc_att_control.handover import Handover, other_att_controller
-from firmware.modules.mc_att_control.quat import (
+from common.quaternion import (
     Quat,
-    qconj,
-    qfrom_axis_angle,
-    qfrom_euler,
-    qmul,
-    qyaw,
+    q_conj,
+    q_from_rotvec,
+    q_from_euler,
+    q_mul,
+    q_yaw,
 )
 from mypy_extensions import mypyc_attr
 
@@ -99,19 +99,19 @@ def attitude_error_rates(q: Quat, qd: Quat, yaw_w: float) -> tuple[float, float,
         rw = 1.0 + dot
         n = math.sqrt(rw * rw + cx * cx + cy * cy + cz * cz)
         qr = (rw / n, cx / n, cy / n, cz / n)
-        qd_red = qmul(qr, q)
+        qd_red = q_mul(qr, q)
         # heading part: qd = qd_red * q_mix, q_mix a rotation about z
-        mw, _mx, _my, mz = qmul(qconj(qd_red), qd)
+        mw, _mx, _my, mz = q_mul(q_conj(qd_red), qd)
         if mw < 0.0:
             mw, mz = -mw, -mz
         mw = -1.0 if mw < -1.0 else (min(mw, 1.0))
         mz = -1.0 if mz < -1.0 else (min(mz, 1.0))
         ang_w = yaw_w * math.acos(mw)
         ang_z = yaw_w * math.asin(mz)
-        qd_final = qmul(qd_red, (math.cos(ang_w), 0.0, 0.0, math.sin(ang_z)))
+        qd_final = q_mul(qd_red, (math.cos(ang_w), 0.0, 0.0, math.sin(ang_z)))
     else:  # upside down relative to the setpoint: no reduced attitude exists, go directly
         qd_final = qd
-    ew, ex, ey, ez = qmul(qconj(q), qd_final)
+    ew, ex, ey, ez = q_mul(q_conj(q), qd_final)
     s = 2.0 if ew >= 0.0 else -2.0
     return s * ex, s * ey, s * ez
 
@@ -266,7 +266,7 @@ class McAttControlModule(WorkItemModule):
     def _stabilized_setpoint(self, q: Quat, dt: float) -> None:
         """Sticks -> attitude setpoint (tilt vector in the heading frame, yaw from the rate)."""
         man = self.manual
-        yaw = qyaw(q)
+        yaw = q_yaw(q)
         thr = self._throttle_curve(man.throttle)
         if self.man_yaw_sp != self.man_yaw_sp:  # NaN: started with no heading setpoint
             self.man_yaw_sp = yaw
@@ -283,8 +283,8 @@ class McAttControlModule(WorkItemModule):
                 self.man_yaw_sp = yaw + math.copysign(lim, err)
         self.man_yaw_sp = math.remainder(self.man_yaw_sp, 2.0 * math.pi)
         tilt = self.man_tilt_max
-        q_tilt = qfrom_axis_angle(man.roll * tilt, -man.pitch * tilt, 0.0)
-        self.qd = qmul(qfrom_euler(0.0, 0.0, self.man_yaw_sp), q_tilt)
+        q_tilt = q_from_rotvec(man.roll * tilt, -man.pitch * tilt, 0.0)
+        self.qd = q_mul(q_from_euler(0.0, 0.0, self.man_yaw_sp), q_tilt)
         self.thrust_body[0] = self.thrust_body[1] = 0.0
         self.thrust_body[2] = -thr
         m = self.att_sp_msg

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Final
 
 from firmware.modules.mc_att_control.mc_att_control import PARAMS as MC_ATT_PARAMS
 from firmware.modules.mc_att_control.mc_att_control import McAttControlModule
-from firmware.modules.mc_att_control.quat import Quat
+from common.quaternion import Quat
 from firmware.modules.mc_att_control_so3.so3 import so3_error, yaw_feed_forward_body
 from firmware.platform.params import ParamDef
 

@@ -19,7 +19,7 @@ With ``qe = q^-1 * q_d`` (Hamilton, PX4's frames) ``R^T R_d`` is ``R(qe)`` and
 
 from __future__ import annotations
 
-from firmware.modules.mc_att_control.quat import Quat
+from common.quaternion import Quat
 
 __all__ = ["so3_error", "yaw_feed_forward_body"]
 

@@ -30,13 +30,15 @@ __all__ = ["IMPLS", "PARAMS", "McAttSelectModule"]
 IMPLS: Final[dict[int, str]] = ATT_CONTROLLERS
 
 PARAMS: tuple[ParamDef, ...] = (
-    ParamDef("MC_ATT_IMPL", "INT32", 0, min=0, max=1, group="Multicopter Attitude Control",
+    ParamDef("MC_ATT_IMPL", "INT32", 0, min=0, max=2, group="Multicopter Attitude Control",
              short="Attitude controller implementation",
              long="Which multicopter attitude controller runs. Changing it in flight swaps "
                   "the controllers without a step in the rate setpoint (mc_att_select); a "
                   "controller started from the shell sets it to its own number.",
              values={0: "mc_att_control (quaternion, PX4)",
-                     1: "mc_att_control_so3 (geometric SO(3), Lee 2010)"}),
+                     1: "mc_att_control_so3 (geometric SO(3), Lee 2010)",
+                     2: "mc_att_companion (the companion computer's law, FMU law as "
+                        "fallback)"}),
 )
 
 

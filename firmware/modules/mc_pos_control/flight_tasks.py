@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from typing import TYPE_CHECKING, Any, Final
+from common.units import G0_M_S2
 
 if TYPE_CHECKING:
     from firmware.modules.mc_pos_control.mc_pos_control import McPosControlModule
@@ -37,7 +38,6 @@ __all__ = [
 
 SP_POSITION, SP_VELOCITY, SP_LOITER, SP_TAKEOFF, SP_LAND, SP_IDLE = range(6)
 NAN: Final = math.nan
-G: Final = 9.80665
 
 
 class LineTrajectory:
@@ -330,7 +330,7 @@ class TaskManualAltitude(_TaskManualZ):
         self._update_yaw(dt)
         tan_t = math.tan(c.man_tilt_max)
         # stick in the heading frame: pitch forward (positive) is +x, roll right is +y
-        fx, fy = c.manual.pitch * tan_t * G, c.manual.roll * tan_t * G
+        fx, fy = c.manual.pitch * tan_t * G0_M_S2, c.manual.roll * tan_t * G0_M_S2
         cy, sy = math.cos(self.yaw), math.sin(self.yaw)
         self.pos[0] = self.pos[1] = NAN
         self.vel[0] = self.vel[1] = NAN

@@ -14,10 +14,10 @@ Linearised about the estimate, H = g T / h^2.
 from __future__ import annotations
 
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["HoverThrustEstimator"]
 
-G: Final = 9.80665
 
 
 class HoverThrustEstimator:
@@ -45,8 +45,8 @@ class HoverThrustEstimator:
         """One predict + update with the measured ``az`` (NED) and the applied vertical thrust."""
         self.var += self.noise * self.noise * dt
         h = self.hover
-        hh = G * thrust_up / (h * h)
-        pred = G * (1.0 - thrust_up / h)
+        hh = G0_M_S2 * thrust_up / (h * h)
+        pred = G0_M_S2 * (1.0 - thrust_up / h)
         innov = az - pred
         s = hh * hh * self.var + self.acc_var
         ratio = innov * innov / (self.gate * self.gate * s)

@@ -25,7 +25,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from firmware.modules.mc_att_control.quat import qyaw
+from common.quaternion import q_yaw
 from firmware.modules.mc_pos_control.flight_tasks import (
     TaskAuto,
     TaskManualAltitude,
@@ -215,7 +215,7 @@ class McPosControlModule(WorkItemModule):
         self.x, self.y, self.z = lp.x, lp.y, lp.z
         self.vx, self.vy, self.vz = lp.vx, lp.vy, lp.vz
         att = self.sub_att.copy()
-        self.yaw = qyaw(tuple(att.q)) if att is not None else lp.heading
+        self.yaw = q_yaw(tuple(att.q)) if att is not None else lp.heading
         if lp.xy_global and (self.proj is None or self.proj.ref_lat != lp.ref_lat
                              or self.proj.ref_lon != lp.ref_lon):
             self.proj = MapProjection(lp.ref_lat, lp.ref_lon)

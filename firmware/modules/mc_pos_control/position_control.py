@@ -22,11 +22,11 @@ from __future__ import annotations
 import math
 from typing import Final
 
-from firmware.modules.mc_att_control.quat import Quat, qfrom_dcm_columns
+from common.quaternion import Quat, q_from_dcm_columns
+from common.units import G0_M_S2
 
 __all__ = ["G", "PositionControl", "attitude_from_thrust"]
 
-G: Final = 9.80665
 
 
 def attitude_from_thrust(tx: float, ty: float, tz: float, yaw: float) -> Quat:
@@ -46,7 +46,7 @@ def attitude_from_thrust(tx: float, ty: float, tz: float, yaw: float) -> Quat:
         bx = (bx[0] / nx, bx[1] / nx, bx[2] / nx)
     by = (bz[1] * bx[2] - bz[2] * bx[1], bz[2] * bx[0] - bz[0] * bx[2],
           bz[0] * bx[1] - bz[1] * bx[0])
-    return qfrom_dcm_columns(bx, by, bz)
+    return q_from_dcm_columns(bx, by, bz)
 
 
 class PositionControl:
@@ -74,7 +74,7 @@ class PositionControl:
         """Change the hover thrust without a thrust jump: re-express the z integrator."""
         hover = min(max(hover, 0.05), 0.95)
         if hover != self.hover:
-            self.int_z += (self.acc_sp[2] - G) * (self.hover / hover - 1.0)
+            self.int_z += (self.acc_sp[2] - G0_M_S2) * (self.hover / hover - 1.0)
             self.hover = hover
 
     def update(self, dt: float, pos: tuple[float, float, float],
@@ -124,10 +124,10 @@ class PositionControl:
             a[2] += acc_sp[2]
 
         # -- acceleration -> thrust ---------------------------------------------------------
-        hg = self.hover / G
+        hg = self.hover / G0_M_S2
         thr_max = self.thr_max if thr_max_override is None else thr_max_override
         thr_min = min(self.thr_min, thr_max)
-        tz = (G - a[2]) * hg           # vertical thrust, positive up
+        tz = (G0_M_S2 - a[2]) * hg           # vertical thrust, positive up
         sat_z_hi = tz > thr_max
         sat_z_lo = tz < thr_min
         tz = thr_max if sat_z_hi else (thr_min if sat_z_lo else tz)
@@ -147,11 +147,11 @@ class PositionControl:
         # -- integrators with anti-windup ---------------------------------------------------
         if z_vel and integrate_z and not ((sat_z_hi and ez < 0.0) or (sat_z_lo and ez > 0.0)):
             iz = self.int_z + self.vz_i * ez * dt
-            self.int_z = -G if iz < -G else (min(iz, G))
+            self.int_z = -G0_M_S2 if iz < -G0_M_S2 else (min(iz, G0_M_S2))
         if xy_vel and integrate_xy and not (sat_xy and ex * a[0] + ey * a[1] > 0.0):
             ix = self.int_x + self.vxy_i * ex * dt
             iy = self.int_y + self.vxy_i * ey * dt
             n = math.hypot(ix, iy)
-            if n > G:
-                ix, iy = ix * G / n, iy * G / n
+            if n > G0_M_S2:
+                ix, iy = ix * G0_M_S2 / n, iy * G0_M_S2 / n
             self.int_x, self.int_y = ix, iy

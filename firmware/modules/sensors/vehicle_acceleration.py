@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from firmware.platform.uorb import Publication
+from common.units import G0_M_S2
 
 __all__ = ["VehicleAcceleration"]
 
@@ -23,7 +24,7 @@ class VehicleAcceleration:
         self._msg = msg
         self.cutoff_hz = 0.0
         self._x = self._y = 0.0
-        self._z = -9.80665
+        self._z = -G0_M_S2
 
     def update(self, ax: float, ay: float, az: float, dt_us: int, t_sample: int,
                now: int) -> None:

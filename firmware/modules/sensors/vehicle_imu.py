@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Any
 
 from firmware.platform.uorb import Publication
+from common.units import G0_M_S2
 
 __all__ = ["VehicleIMU"]
 
@@ -38,7 +39,7 @@ class VehicleIMU:
         self._ai_clip = 0
         #: the last interval's mean specific force, m/s^2 (held while no accel sample comes)
         self.ax = self.ay = 0.0
-        self.az = -9.80665
+        self.az = -G0_M_S2
 
     def integrate_gyro(self, x: float, y: float, z: float, dt: int, t: int) -> None:
         self._gix += x * dt

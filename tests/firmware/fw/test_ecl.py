@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+from common.units import G0_M_S2
 import math
 
 import pytest
 
 from firmware.modules.fw_att_control.ecl import (
-    G,
     RateLoop,
     coordinated_yaw_rate,
     euler_rates_to_body,
@@ -47,7 +47,7 @@ def test_rate_loop_does_not_wind_up_into_saturation():
 def test_coordinated_turn_and_euler_to_body():
     roll = math.radians(30.0)
     r = coordinated_yaw_rate(roll, 0.0, 16.0)
-    assert r == pytest.approx(G * math.tan(roll) / 16.0)
+    assert r == pytest.approx(G0_M_S2 * math.tan(roll) / 16.0)
     assert coordinated_yaw_rate(math.radians(89.0), 0.0, 16.0) == 0.0   # knife edge: none
     # level, wings level: Euler rates are body rates
     assert euler_rates_to_body(0.0, 0.0, 0.1, 0.2, 0.3) == pytest.approx((0.1, 0.2, 0.3))

@@ -9,7 +9,8 @@ import math
 
 import pytest
 
-from firmware.lib.l1 import G, L1Control, wrap_pi
+from firmware.lib.l1 import L1Control, wrap_pi
+from common.units import G0_M_S2
 
 
 class KinematicPlane:
@@ -26,7 +27,7 @@ class KinematicPlane:
     def step(self, roll_sp: float, dt: float, wind_ne: tuple[float, float] = (0.0, 0.0)
              ) -> None:
         self.roll += (roll_sp - self.roll) * dt / 0.4
-        self.psi = wrap_pi(self.psi + G * math.tan(self.roll) / self.v * dt)
+        self.psi = wrap_pi(self.psi + G0_M_S2 * math.tan(self.roll) / self.v * dt)
         vn, ve = self.vel
         self.n += (vn + wind_ne[0]) * dt
         self.e += (ve + wind_ne[1]) * dt
@@ -107,7 +108,7 @@ def test_converges_onto_a_circle_the_right_way_round(direction, start):
     tail = radii[-1500:]
     assert max(abs(r - radius) for r in tail) < 2.0, (min(tail), max(tail))
     # steady bank of the circle, on the side of the loiter direction
-    expect = math.atan(plane.v ** 2 / radius / G)
+    expect = math.atan(plane.v ** 2 / radius / G0_M_S2)
     assert turn[-1] * direction == pytest.approx(expect, abs=math.radians(3.0))
     assert l1.circle_mode
 

@@ -12,7 +12,8 @@ import math
 
 import pytest
 
-from firmware.lib.tecs import TAS_GATE_TIMEOUT_S, G, Tecs, TecsParams
+from firmware.lib.tecs import TAS_GATE_TIMEOUT_S, Tecs, TecsParams
+from common.units import G0_M_S2
 
 MASS_KG = 2.0
 THRUST_MAX_N = 20.0
@@ -32,7 +33,7 @@ class PointMass:
         gamma = self.pitch - self.alpha(self.v)
         drag = 0.03 * self.v ** 2 + 731.0 / max(self.v, 5.0) ** 2
         self.accel_x = (THRUST_MAX_N * throttle - drag) / MASS_KG
-        dv = self.accel_x - G * math.sin(gamma)
+        dv = self.accel_x - G0_M_S2 * math.sin(gamma)
         self.v = max(self.v + dv * dt, 1.0)
         self.vz_up = self.v * math.sin(gamma)
         self.h += self.vz_up * dt
@@ -214,7 +215,7 @@ def test_pitch_integrator_alone_never_exceeds_the_pitch_limits():
               throttle_min=0.0, throttle_max=1.0, throttle_cruise=0.5, pitch_min_rad=-0.3,
               pitch_max_rad=0.3)
     tecs.update(0.02, **kw)
-    gain_inv = TecsParams().airspeed_trim_m_s * TecsParams().time_const_s * G
+    gain_inv = TecsParams().airspeed_trim_m_s * TecsParams().time_const_s * G0_M_S2
     tecs.pitch_integ = 10.0 * gain_inv          # ten radians' worth
     tecs.update(0.02, **kw)
     assert tecs.pitch_integ <= 0.3 * gain_inv + 1e-6

@@ -10,17 +10,17 @@ others within 5 m/s^2 of 0; anything else is an invalid orientation.
 from __future__ import annotations
 
 from typing import Final
+from common.units import G0_M_S2
 
 __all__ = ["G0", "SIDE_GRAVITY", "OrientationDetector"]
 
-G0: Final = 9.80665
 EMA_S: Final = 0.5
 STILL_THR2: Final = 0.25 * 0.25
 STILL_TIME_US: Final = 1_300_000
 ERR_THR: Final = 5.0
 #: specific force at rest on each side (PX4's order: back, front, left, right, up, down)
-SIDE_GRAVITY: Final = ((G0, 0.0, 0.0), (-G0, 0.0, 0.0), (0.0, G0, 0.0), (0.0, -G0, 0.0),
-                       (0.0, 0.0, G0), (0.0, 0.0, -G0))
+SIDE_GRAVITY: Final = ((G0_M_S2, 0.0, 0.0), (-G0_M_S2, 0.0, 0.0), (0.0, G0_M_S2, 0.0),
+                       (0.0, -G0_M_S2, 0.0), (0.0, 0.0, G0_M_S2), (0.0, 0.0, -G0_M_S2))
 #: what :meth:`OrientationDetector.feed` reports besides a side (0..5)
 NOTHING: Final = -1
 REST: Final = -2
