@@ -336,6 +336,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("rosnode_args", nargs=argparse.REMAINDER)
     p.set_defaults(func=lambda a: __import__("hil.rosnode").rosnode.main(a.rosnode_args))
 
+    p = sub.add_parser("rosnode", add_help=False, help="a flight-stack module as a native ROS 1 "
+                       "node: /fmu/out/<topic> -> module -> /fmu/in/<topic>, time from /clock")
+    p.add_argument("rosnode_args", nargs=argparse.REMAINDER)
+    p.set_defaults(func=lambda a: __import__("hil.rosnode").rosnode.main(a.rosnode_args))
+
     p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
     p.add_argument("--out", default=None, help="write to this file instead of stdout")
     p.set_defaults(func=_cmd_params)
