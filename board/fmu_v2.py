@@ -68,6 +68,7 @@ from board.specs import (
     with_optional_devices,
 )
 from board.uart import Uart, UartConfig
+from common.truth import TRUTH_FIELDS
 from firmware.platform import Platform
 from firmware.shell.line_editor import LineEditor
 from peripherals.errors import rng_for
@@ -78,20 +79,14 @@ if TYPE_CHECKING:
     from firmware.shell import Shell
     from firmware.system import System
 
-__all__ = ["FmuV2Board", "TRUTH_KEYS", "BOOT_TO_SENSORS_NS"]
+__all__ = ["FmuV2Board", "BOOT_TO_SENSORS_NS"]
 
 #: Virtual time from power-on until the start-up script starts the sensor drivers (NuttX boot,
 #: mounting, parameter load). The sensors power up meanwhile (the MPU6000 needs 100 ms).
 BOOT_TO_SENSORS_NS = 300_000_000
 
-#: Field order of a truth record (hil.worldlink.TRUTH_FIELDS); kept here so the board does not
-#: import the world.
-TRUTH_KEYS = ("t_ns", "accel_body_m_s2", "gyro_rad_s", "q_nb", "euler_rad", "mag_body_gauss",
-              "pressure_pa", "temperature_c", "lat_deg", "lon_deg", "alt_m", "agl_m",
-              "pos_ned_m", "vel_ned_m_s", "airspeed_m_s", "diff_pressure_pa", "battery_v",
-              "battery_a", "aoa_rad", "sideslip_rad")
 (_ACCEL, _GYRO, _MAG, _PRESSURE, _TEMPERATURE, _LAT, _LON, _ALT, _VEL, _DIFF_PRESSURE) = (
-    TRUTH_KEYS.index(k) for k in ("accel_body_m_s2", "gyro_rad_s", "mag_body_gauss", "pressure_pa",
+    TRUTH_FIELDS.index(k) for k in ("accel_body_m_s2", "gyro_rad_s", "mag_body_gauss", "pressure_pa",
                                   "temperature_c", "lat_deg", "lon_deg", "alt_m", "vel_ned_m_s",
                                   "diff_pressure_pa"))
 

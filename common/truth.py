@@ -1,4 +1,8 @@
-"""Ground truth of the world at one instant, in SI units and PX4 frames.
+"""Ground truth of the world at one instant, in SI units and PX4 frames: the truth record schema.
+
+The world (hil/) fills it, the FMU board (board/) feeds its sensors from it as a plain tuple in
+:data:`TRUTH_FIELDS` order, tests and calibration jigs build it: so it lives in the bottom
+package, which every layer may import.
 
 Frames: body FRD (x forward, y right, z down), navigation NED (north, east, down) at the
 vehicle. Vectors are tuples of floats (cheap to build, immutable, no numpy overhead per step).
@@ -22,10 +26,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Truth", "quat_from_euler", "dcm_nb_from_euler", "rotate_ned_to_body"]
+from common.quaternion import Quat, Vec3
 
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
+__all__ = ["TRUTH_FIELDS", "Truth", "dcm_nb_from_euler", "rotate_ned_to_body"]
 
 
 @dataclass(slots=True)
@@ -56,17 +59,8 @@ class Truth:
     sideslip_rad: float = 0.0  # sideslip, asin(v / airspeed), positive: wind from the right
 
 
-def quat_from_euler(roll: float, pitch: float, yaw: float) -> Quat:
-    """Quaternion (w, x, y, z) for 3-2-1 Euler angles (PX4's Quatf(Eulerf(r, p, y)))."""
-    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
-    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
-    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
+#: Field order of a truth record, as it crosses from the world to the FMU board.
+TRUTH_FIELDS: tuple[str, ...] = tuple(Truth.__dataclass_fields__)
 
 
 def dcm_nb_from_euler(roll: float, pitch: float, yaw: float) -> tuple[Vec3, Vec3, Vec3]:

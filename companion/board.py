@@ -168,10 +168,14 @@ class CompanionBoard(Board):
         params = Params(p, list(system_params.PARAMS) + registry.param_defs(), storage)
         system.params = params
         if self._param_overrides:
+            # the system's overrides (hil passes the FMU's): those this computer declares
             params.load()
+            skipped = [n for n in self._param_overrides if n not in params]
+            if skipped:
+                p.info("param", f"{len(skipped)} given parameters not declared here, "
+                                f"skipped (first: {skipped[0]})")
             for name, value in self._param_overrides.items():
                 if name not in params:
-                    p.warn("param", f"{name}: no such parameter on the companion, not set")
                     continue
                 if name == "SYS_AUTOSTART" and params[name] != value:
                     params.set("SYS_AUTOCONFIG", 1, notify=False)  # a new airframe's defaults

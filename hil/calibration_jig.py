@@ -25,7 +25,8 @@ from typing import Any
 from board.wiring import WORLD, Wire
 from hil.world.atmosphere import KELVIN_0C, isa_pressure_pa, isa_temperature_k
 from hil.world.magnetic import earth_field_ned_gauss
-from hil.world.truth import Truth, quat_from_euler
+from common.quaternion import q_from_euler
+from common.truth import Truth
 from hil.worldlink import TRUTH_FIELDS, truth_record
 from common.units import G0_M_S2
 
@@ -190,7 +191,7 @@ class CalibrationJig:
         yaw = math.atan2(r[1][0], r[0][0])
         return truth_record(Truth(
             t_ns=t_ns, accel_body_m_s2=_rotate_t(r, (0.0, 0.0, -G0_M_S2)), gyro_rad_s=rates,
-            q_nb=quat_from_euler(roll, pitch, yaw), euler_rad=(roll, pitch, yaw),
+            q_nb=q_from_euler(roll, pitch, yaw), euler_rad=(roll, pitch, yaw),
             mag_body_gauss=_rotate_t(r, self.field_ned), pressure_pa=self.pressure_pa,
             temperature_c=self.temperature_c, lat_deg=self.lat_deg, lon_deg=self.lon_deg,
             alt_m=self.alt_m, agl_m=0.0, pos_ned_m=(0.0, 0.0, 0.0),

@@ -54,7 +54,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                        mode="local" if args.one_process else "process",
                        timeout_s=args.duration, progress=not args.json,
                        pipeline=not args.no_pipeline, pin_cpus=not args.no_pin,
-                       can_escs=args.can_escs)
+                       can_escs=args.can_escs, companion=args.companion,
+                       companion_att=args.companion_att)
     return main(cfg, as_json=args.json)
 
 
@@ -69,7 +70,16 @@ def _cmd_log(args: argparse.Namespace) -> int:
 def _cmd_shell(args: argparse.Namespace) -> int:
     from hil import shell_client
 
-    return shell_client.main(args.port, args.command, args.timeout)
+    port = args.port
+    if port is None and args.board == "companion":
+        # the companion's serial console, announced by hil fly --companion
+        info = shell_client.discover()
+        port = (info or {}).get("companion_console_tcp")
+        if port is None:
+            print("hil shell: no running emulator with a companion computer found (start one "
+                  "with 'hil fly --companion'), or give --port", file=sys.stderr)
+            return 1
+    return shell_client.main(port, args.command, args.timeout)
 
 
 def _cmd_fly(args: argparse.Namespace) -> int:
@@ -82,7 +92,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     return main(seed=args.seed, speed=args.speed, duration_s=args.duration, out_dir=args.out,
                 airframe=args.airframe, keep_safety=args.keep_safety, keep_fram=args.keep_fram,
                 fixed_utc=args.fixed_utc, can=args.can, uart=args.uart, param=args.param,
-                can_escs=args.can_escs)
+                can_escs=args.can_escs, companion=args.companion or args.ros, ros=args.ros)
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
@@ -221,6 +231,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--can-escs", action="store_true",
                    help="motors on four DroneCAN ESCs (nodes 11-14 on CAN1, UAVCAN_ENABLE 3) "
                         "instead of the IO's PWM outputs")
+    p.add_argument("--companion", action="store_true",
+                   help="a companion computer (a third board) on the FMU's TELEM2 with the "
+                        "uORB bridge (docs/companion.md)")
+    p.add_argument("--companion-att", action="store_true",
+                   help="the attitude controller runs on the companion, the FMU's as its "
+                        "fallback (MC_ATT_IMPL 2; implies --companion)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=_cmd_run)
 
@@ -250,6 +266,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "instead of the IO's PWM outputs")
     p.add_argument("--param", action="append", default=[], metavar="NAME=V",
                    help="parameter override at boot, e.g. UAVCAN_ENABLE=1")
+    p.add_argument("--companion", action="store_true",
+                   help="a companion computer on TELEM2 with the uORB bridge; its console: "
+                        "hil shell --board companion (docs/companion.md)")
+    p.add_argument("--ros", action="store_true",
+                   help="the companion's topics on ROS 1 (/fmu/out, /fmu/in; implies "
+                        "--companion; docs/ros.md)")
     p.set_defaults(func=_cmd_fly)
 
     p = sub.add_parser("airframes", help="list the airframes hil run --airframe flies")
@@ -277,6 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="console TCP port (default: the newest running hil)")
     p.add_argument("-c", dest="command", default=None, help="run one command and exit")
     p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a reply")
+    p.add_argument("--board", choices=("fmu", "companion"), default="fmu",
+                   help="whose console: the FMU's nsh (default) or the companion computer's "
+                        "(hil fly --companion)")
     p.set_defaults(func=_cmd_shell)
 
     p = sub.add_parser("scenario", help="run a fault scenario and judge its expectations")
@@ -330,11 +355,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the latest message this often (0: summary only)")
     p.add_argument("--seed", type=int, default=0, help="seed of the emulated chip's noise")
     p.set_defaults(func=_cmd_hostdrv)
-
-    p = sub.add_parser("rosnode", add_help=False, help="a flight-stack module as a native ROS 1 "
-                       "node: /fmu/out/<topic> -> module -> /fmu/in/<topic>, time from /clock")
-    p.add_argument("rosnode_args", nargs=argparse.REMAINDER)
-    p.set_defaults(func=lambda a: __import__("hil.rosnode").rosnode.main(a.rosnode_args))
 
     p = sub.add_parser("rosnode", add_help=False, help="a flight-stack module as a native ROS 1 "
                        "node: /fmu/out/<topic> -> module -> /fmu/in/<topic>, time from /clock")

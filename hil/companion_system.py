@@ -5,7 +5,8 @@
 (``companion.board:CompanionBoard``) on the FMU's TELEM2 (``board.wiring.COMPANION_WIRES``),
 the FMU's parameters that start its side of the uORB bridge there (``UORB_BRG_CFG`` 102, as
 PX4's ``UXRCE_DDS_CFG`` names TELEM2), and for ``companion_att`` the attitude law moved to the
-companion (``MC_ATT_IMPL`` 2 on the FMU, ``mc_att_control start`` on the companion). The
+companion (``MC_ATT_IMPL`` 2 on the FMU, ``mc_att_control start`` on the companion), and for
+``ros`` the companion's ``ros_bridge start`` (the edge itself is hil.ros.link's). The
 companion gets the FMU's airframe (``SYS_AUTOSTART``) and the run's parameter overrides; it
 applies those it declares.
 """
@@ -19,6 +20,7 @@ from typing import Any
 from board.wiring import COMPANION, COMPANION_WIRES, Wire
 
 __all__ = ["COMPANION_ATT_FMU_PARAMS", "COMPANION_FMU_PARAMS", "COMPANION_ATT_STARTUP",
+           "COMPANION_ROS_STARTUP",
            "add_companion", "companion_summary", "format_companion"]
 
 #: FMU parameters for a companion on TELEM2: the bridge's FMU side starts from rcS.
@@ -27,6 +29,8 @@ COMPANION_FMU_PARAMS: dict[str, int] = {"UORB_BRG_CFG": 102}
 COMPANION_ATT_FMU_PARAMS: dict[str, int] = {"MC_ATT_IMPL": 2}
 #: the companion's own start-up lines for ``companion_att``
 COMPANION_ATT_STARTUP: tuple[str, ...] = ("mc_att_control start",)
+#: the companion's own start-up lines for ``ros``
+COMPANION_ROS_STARTUP: tuple[str, ...] = ("ros_bridge start",)
 
 
 def _declared(params: dict[str, int]) -> dict[str, int]:
@@ -63,8 +67,8 @@ def add_companion(cfg: Any, boards: dict[str, Any], fmu_params: dict[str, Any],
     if cfg.companion_att:
         wanted.update(COMPANION_ATT_FMU_PARAMS)
         startup = COMPANION_ATT_STARTUP
-    if cfg.ros:  # the companion's side of the ROS edge (hil/ros/link.py owns the other end)
-        startup += ("ros_bridge start",)
+    if cfg.ros:  # its topics to and from the ROS edge (hil.ros.link) over the "ros" port
+        startup += COMPANION_ROS_STARTUP
     for name, value in _declared(wanted).items():
         fmu_params.setdefault(name, value)  # an explicit --param wins
     kwargs: dict[str, Any] = {

@@ -63,6 +63,11 @@ class FlightConfig:
     can_escs: bool = False              # motors on DroneCAN ESCs (hil.system.SystemConfig); the
                                         # summary then has "can1", "outputs_at_takeoff" and
                                         # "uavcan_status"
+    #: a companion computer on TELEM2 with the uORB bridge (hil.system.SystemConfig); the
+    #: summary then has "companion" (the bridge's counters on both sides)
+    companion: bool = False
+    companion_att: bool = False         # the attitude law on the companion (implies companion)
+    ros: bool = False                   # the companion's topics on ROS 1 (implies companion)
 
 
 class _Recorder:
@@ -122,13 +127,17 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
                         quantum_ns=cfg.quantum_ns, mode=cfg.mode, speed=cfg.speed,
                         params=params, gcs=True, pipeline=cfg.pipeline,
                         pin_cpus=cfg.pin_cpus, trace_path=cfg.trace_path,
-                        can_escs=cfg.can_escs)
+                        can_escs=cfg.can_escs, companion=cfg.companion,
+                        companion_att=cfg.companion_att, ros=cfg.ros)
+    with_companion = cfg.companion or cfg.companion_att or cfg.ros
     progress = Progress(enabled=cfg.progress)
     if cfg.progress:
-        print(f"hil run: Pixhawk 1 (FMU + IO processes) flying the {frame.title} "
+        boards = "FMU + IO + companion" if with_companion else "FMU + IO"
+        print(f"hil run: Pixhawk 1 ({boards} processes) flying the {frame.title} "
               f"({frame.host.world_model} JSBSim model), seed {cfg.seed}; {tier_line()}",
               flush=True)
-    progress.doing("starting the FMU and IO board processes")
+    progress.doing("starting the FMU, IO and companion board processes" if with_companion
+                   else "starting the FMU and IO board processes")
     orch, dev = build_system(scfg)
     orch.on_quantum.append(progress)
     gcs: GcsClient = dev["gcs"]
@@ -246,6 +255,11 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         trim_m_s = _param_value(orch, "FW_AIRSPD_TRIM") if fixed_wing else None
         vt_limits = {n: _param_value(orch, n) for n in ("VT_TRANS_TIMEOUT", "VT_B_TRANS_DUR")} \
             if vtol else {}
+        companion = None
+        if with_companion:
+            from hil.companion_system import companion_summary
+
+            companion = companion_summary(orch)
     wall = time.perf_counter() - wall0
     summary = _summary(cfg, mission, altitude_m, rec.rows, phases, reached, home, rtf, wall)
     summary["airframe"] = frame.as_json()
@@ -259,6 +273,8 @@ def fly(cfg: FlightConfig) -> dict[str, Any]:
         summary["can1"] = can1                   # CAN1 and its ESC nodes' counters at the end
         summary["outputs_at_takeoff"] = outputs
         summary["uavcan_status"] = uavcan
+    if with_companion:
+        summary["companion"] = companion
     return summary
 
 
@@ -407,6 +423,10 @@ def main(cfg: FlightConfig, as_json: bool = False) -> int:
         print(f"  motors on CAN ESCs: RawCommands received {[n['commands_rx'] for n in nodes]}, "
               f"esc.Status sent {[n['status_tx'] for n in nodes]}, CAN error frames "
               f"{summary['can1']['error_frames']}")
+    if summary.get("companion"):
+        from hil.companion_system import format_companion
+
+        print(format_companion(summary["companion"]))
     tier = ("compiled tier" if summary["compiled"]
             else "pure Python; `make native` compiles the fast modules, ~1.3x faster")
     cpus = summary.get("cpus") or "CPUs not pinned"

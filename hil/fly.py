@@ -77,7 +77,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
          params: dict[str, Any] | None = None, quiet: bool = False,
          keep_fram: bool = False, fixed_utc: bool = False, can: list[str] | None = None,
          uart: list[str] | None = None, param: list[str] | None = None,
-         can_escs: bool = False) -> int:
+         can_escs: bool = False, companion: bool = False, ros: bool = False) -> int:
     if speed <= 0:
         print("hil fly: --speed must be positive", file=sys.stderr)
         return 2
@@ -106,7 +106,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                        fresh_fram=not keep_fram,
                        gps_utc_start_ns=None if fixed_utc else time.time_ns(),
                        can_hosts=("CAN1",), can_tcp=True, can_bind=can_bind,
-                       uart_bind=uart_bind, can_escs=can_escs,
+                       uart_bind=uart_bind, can_escs=can_escs, companion=companion,
+                       ros=ros,
                        params={"EKF2_MAG_DECL": 2.6, **(params or {}), **extra})
     try:
         orch, dev = build_system(cfg)
@@ -133,12 +134,15 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
             uarts = {name.upper(): dev[name].tcp_port for name in ("telem1", "telem2")
                      if getattr(dev.get(name), "tcp_port", None)}
             uarts["CONSOLE"] = console.tcp_port
+            comp_console = dev.get("companion_console")
             announce({"console_tcp": console.tcp_port, "console_pty": console.pty_name,
+                      "companion_console_tcp": getattr(comp_console, "tcp_port", None),
                       "mavlink_udp": [14550, 14540], "speed": speed,
                       "can": {b: {"port": h.tcp_port, "bitrate": h.bitrate}
                               for b, h in cans.items()},
                       "uart": uarts})
-            say(f"hil fly: Pixhawk 1 (FMU + IO) with the JSBSim F450, {speed:g}x real time, "
+            boards = "FMU + IO + companion" if comp_console is not None else "FMU + IO"
+            say(f"hil fly: Pixhawk 1 ({boards}) with the JSBSim F450, {speed:g}x real time, "
                 f"seed {seed}")
             say("  QGroundControl / MAVProxy: the vehicle sends to udp 127.0.0.1:14550 "
                 "(mavproxy.py --master=udpin:127.0.0.1:14550)")
@@ -156,6 +160,10 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                 say(f"  {name.upper() + ' bound to:':<28}{binding.url}")
             say(f"  console (nsh):              hil shell   (tcp 127.0.0.1:{console.tcp_port}, "
                 f"pty {console.pty_name})")
+            if comp_console is not None:
+                say(f"  companion console (nsh):    hil shell --board companion   (tcp "
+                    f"127.0.0.1:{comp_console.tcp_port}, pty {comp_console.pty_name}); "
+                    f"TELEM2 is its cable")
             say("  Ctrl-C to stop.")
             if not keep_safety:
                 # The IO takes the button only once the FMU is ready to arm (~2 s after boot).
@@ -177,7 +185,7 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
         return 130
     finally:
         withdraw()
-        for name in ("console", "udp", "telem1", "telem2", *sorted(
+        for name in ("console", "companion_console", "ros", "udp", "telem1", "telem2", *sorted(
                 n for n, d in dev.items() if isinstance(d, CanHost))):
             close = getattr(dev.get(name), "close", None)
             if close is not None:

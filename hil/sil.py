@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
-from board.fmu_v2 import TRUTH_KEYS, FmuV2Board
+from board.fmu_v2 import FmuV2Board
+from common.truth import TRUTH_FIELDS
 from hil.world import World
 from ioproc.mixer import parse_mixer_text
 from ioproc.mixer.group import MixerGroup
@@ -54,7 +55,7 @@ class Sil:
 
     def _feed_truth(self) -> None:
         truth = self.world.truth()
-        self.fmu.env.update_from_truth(truth.t_ns, {k: getattr(truth, k) for k in TRUTH_KEYS})
+        self.fmu.env.update_from_truth(truth.t_ns, {k: getattr(truth, k) for k in TRUTH_FIELDS})
         self.fmu._power_v, self.fmu._power_a = truth.battery_v, truth.battery_a
 
     def _source(self, group: int, index: int) -> float:

@@ -18,7 +18,7 @@ import math
 from board.kernel import NS_PER_US, PRIO_HW, Kernel
 from hil.world.atmosphere import KELVIN_0C, isa_pressure_pa, isa_temperature_k
 from hil.world.magnetic import earth_field_ned_gauss
-from hil.world.truth import rotate_ned_to_body
+from common.truth import rotate_ned_to_body
 from peripherals.physics import Environment
 from common.units import G0_M_S2
 

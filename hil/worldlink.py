@@ -18,11 +18,10 @@ from typing import Any
 from board.protocols import Record
 from hil.world import World
 from hil.world.fdm import N_MAIN
-from hil.world.truth import Truth
+from common.truth import TRUTH_FIELDS, Truth
 
 __all__ = ["WorldPorts", "TRUTH_FIELDS", "truth_record", "truth_from_record"]
 
-TRUTH_FIELDS: tuple[str, ...] = tuple(Truth.__dataclass_fields__)
 #: one C call instead of a generator over 19 getattr calls (truth leaves every world step)
 _truth_fields = attrgetter(*TRUTH_FIELDS)
 

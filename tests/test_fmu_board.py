@@ -12,7 +12,7 @@ from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
 from hil.turntable import Turntable
 from hil.world.atmosphere import isa_pressure_pa
 from hil.world.magnetic import earth_field_ned_gauss
-from hil.world.truth import rotate_ned_to_body
+from common.truth import rotate_ned_to_body
 from common.units import G0_M_S2
 
 S = 1_000_000_000

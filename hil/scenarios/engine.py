@@ -508,7 +508,8 @@ def run_scenario(sc: Scenario, *, seed: int | None = None, out_dir: str = "out/s
     cfg = SystemConfig(seed=seed, out_dir=out_dir, airframe=sc.airframe,
                        mode="local" if local else "process", params=all_params, rc=sc.rc,
                        gcs=True, trace_path=trace, uavcan_nodes=sc.uavcan_nodes,
-                       can_escs=sc.can_escs, quantum_ns=int(sc.quantum_us * 1000))
+                       can_escs=sc.can_escs, quantum_ns=int(sc.quantum_us * 1000),
+                       companion=sc.companion, companion_att=sc.companion_att)
     orch, dev = build_system(cfg)
     _apply_initial(sc, dev, seed)
     runner = Runner(sc, orch, dev, out_dir, progress)

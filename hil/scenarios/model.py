@@ -25,7 +25,8 @@ __all__ = ["Expectation", "Scenario", "ScenarioError", "Step", "load_scenario",
 
 TOP_KEYS = {"name", "doc", "seed", "rc", "airframe", "params", "initial", "one_process",
             "sample_ms", "duration", "events", "timeline", "expect", "trace", "reference",
-            "known_failure", "uavcan_nodes", "can_escs", "quantum_us"}
+            "known_failure", "uavcan_nodes", "can_escs", "quantum_us", "companion",
+            "companion_att"}
 INITIAL_KEYS = {"heading_deg", "lat_deg", "lon_deg", "alt_m", "sticks", "tx_on"}
 STEP_KINDS = ("wait", "mark", "pilot", "gcs", "fault", "clear", "shell", "ready", "hover",
               "cruise", "settle")
@@ -118,6 +119,9 @@ class Scenario:
     #: node IDs, "gnss", "mag", "esc1".."esc4", each kind with an optional "@id"
     uavcan_nodes: tuple[int | str, ...] = ()
     can_escs: bool = False          # motors on DroneCAN ESCs (hil.system.SystemConfig)
+    #: a companion computer on TELEM2; its attitude law flying the vehicle (SystemConfig)
+    companion: bool = False
+    companion_att: bool = False
     #: the lockstep quantum (us); the default is hil run's 500 us
     quantum_us: float = 500.0
     source: str = ""                # the file it came from
@@ -537,7 +541,8 @@ def _from_dict(data: Any, source: str) -> Scenario:
         timeline=timeline, expect=expect, trace=_flag(d, "trace", True),
         reference=_text(d, "reference"), known_failure=_text(d, "known_failure"),
         source=source, uavcan_nodes=tuple(nodes), can_escs=can_escs,
-        quantum_us=_quantum_us(d.get("quantum_us", 500)))
+        quantum_us=_quantum_us(d.get("quantum_us", 500)),
+        companion=_flag(d, "companion", False), companion_att=_flag(d, "companion_att", False))
 
 
 #: lockstep quanta a scenario may choose (us): hil run's 500 and its neighbours

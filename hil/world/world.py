@@ -31,7 +31,7 @@ from .esc import Esc, EscParams
 from .fdm import AIRFRAMES, FT, N_CHANNELS, N_MAIN, PSF_PA, Fdm, Servo
 from .servo import ServoInput
 from .magnetic import earth_field_ned_gauss
-from .truth import Truth
+from common.truth import Truth
 
 __all__ = ["World", "PX4_HOME"]
 

@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from board.fmu_v2 import TRUTH_KEYS
+from common.truth import TRUTH_FIELDS
 from firmware.modules.commander.calibration.accel import fit_axis
 from firmware.modules.commander.calibration.level import tilt_deg
 from firmware.modules.commander.calibration.orientation import (
@@ -22,9 +22,9 @@ from firmware.modules.commander.calibration.orientation import (
 from firmware.modules.commander.calibration.messages import SIDE_NAMES
 from hil.calibration_jig import CalibrationJig
 
-ACC = TRUTH_KEYS.index("accel_body_m_s2")
-GYRO = TRUTH_KEYS.index("gyro_rad_s")
-PRESSURE = TRUTH_KEYS.index("pressure_pa")
+ACC = TRUTH_FIELDS.index("accel_body_m_s2")
+GYRO = TRUTH_FIELDS.index("gyro_rad_s")
+PRESSURE = TRUTH_FIELDS.index("pressure_pa")
 
 
 def test_fit_axis_recovers_offset_and_scale():
@@ -97,8 +97,8 @@ class _StubWorld:
     def run_until(self, t_ns):
         while self.t_ns + 1_000_000 <= t_ns:
             self.t_ns += 1_000_000
-            rec = [None] * len(TRUTH_KEYS)
-            rec[TRUTH_KEYS.index("t_ns")] = self.t_ns
+            rec = [None] * len(TRUTH_FIELDS)
+            rec[TRUTH_FIELDS.index("t_ns")] = self.t_ns
             rec[ACC] = (0.0, 0.0, -G0_M_S2)
             rec[GYRO] = (0.0, 0.0, 0.0)
             rec[PRESSURE] = 95_000.0

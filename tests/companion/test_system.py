@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from board.wiring import COMPANION_WIRES
+from hil.companion_system import companion_summary, format_companion
 from hil.system import SystemConfig, build_system
 
 S = 1_000_000_000
@@ -48,6 +49,7 @@ def _run_local(out: Path, seconds: float) -> dict:
             "param": orch.call("companion", "shell", "param show SYS_AUTOSTART"),
             "dmesg": orch.call("companion", "dmesg"),
             "fmu_dmesg": orch.call("fmu", "dmesg"),
+            "summary": companion_summary(orch),
         }
     got["log"] = _fmu_log(out)
     return got
@@ -70,6 +72,21 @@ def test_three_boards_boot_in_one_process(local_run):
     assert rc == 0 and "SYS_AUTOSTART" in text and "4011" in text  # the FMU's airframe
     # the companion booted on its own clock, two seconds after power-on
     assert min(t for t, *_ in local_run["dmesg"]) >= 2_000_000
+
+
+def test_the_bridge_carries_frames_both_ways(local_run):
+    """hil run's summary of the bridge: both sides up, frames received on each, none bad
+    after the link came up (the FMU sends from its boot: the companion, still booting, hears
+    the first frames cut short, counted as garbage or lost, never as CRC errors)."""
+    sm = local_run["summary"]
+    assert sm["alive"] and "uorb_bridge" in sm["modules"]
+    fmu, comp = sm["fmu"], sm["companion"]
+    assert fmu["link_ok"] and comp["link_ok"]
+    assert comp["rx_frames"] > 1000          # attitude, setpoint, state at their rates
+    assert fmu["rx_frames"] >= 5             # at least the companion's heartbeats
+    assert fmu["rx_crc_errors"] == comp["rx_crc_errors"] == 0
+    line = format_companion(sm)
+    assert line.startswith("  companion: modules ") and "link up" in line
 
 
 def test_three_boards_boot_as_processes(tmp_path):

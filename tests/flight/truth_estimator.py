@@ -19,7 +19,7 @@ from collections.abc import Callable
 from firmware.modules.mc_pos_control.geo import MapProjection
 from firmware.platform import Platform
 from firmware.platform.workqueue import WorkItem
-from hil.world.truth import Truth
+from common.truth import Truth
 from common.units import G0_M_S2
 
 __all__ = ["TruthEstimator"]

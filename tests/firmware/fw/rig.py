@@ -16,7 +16,7 @@ from pathlib import Path
 
 from firmware.platform import Platform
 from firmware.platform.workqueue import WorkItem
-from hil.world.truth import Truth
+from common.truth import Truth
 from tests.flight.truth_estimator import TruthEstimator
 
 __all__ = ["FW_MODULES", "FwRig", "PLANE_PARAMS"]
