@@ -114,7 +114,7 @@ def test_selector_swaps_on_parameter_and_follows_a_shell_swap(platform):
     _settle(platform)
     assert mods.is_running("mc_att_control_so3") and not mods.is_running("mc_att_control")
     assert "2 swaps" in " ".join(mods.get("mc_att_select").status_lines())
-    assert set(IMPLS.values()) == {"mc_att_control", "mc_att_control_so3"}
+    assert set(IMPLS.values()) == {"mc_att_control", "mc_att_control_so3", "mc_att_companion"}
 
 
 def test_selector_ignores_a_value_naming_no_controller(platform):

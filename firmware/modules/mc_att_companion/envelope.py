@@ -1,0 +1,61 @@
+"""The safety envelope a companion's rate setpoint must stay inside, as pure functions.
+
+The companion computer is outside the FMU's control: its attitude law may be wrong, its
+numbers may be garbage, its link may lie. What the FMU forwards to its rate controller must
+therefore pass checks the FMU can make on its own, each naming what failed so the log line
+says why the FMU took over:
+
+- every number finite (a NaN in a rate setpoint would reach the motors through the PID);
+- each body rate within the FMU's own limits (``MC_ROLLRATE_MAX`` ...), which the FMU's law
+  obeys too: a rate beyond them is not clipped and flown, it is a sign of a broken law;
+- the collective thrust within 0..1 (``thrust_body`` z in -1..0, x and y within -1..1);
+- the vehicle's tilt within ``MC_CMP_ERR_MAX`` of the attitude setpoint: checked by the
+  module over time (``tilt_error_rad`` here), since any law shows a large error for a moment
+  after a step in the setpoint.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+
+__all__ = ["AXES", "rates_violation", "tilt_error_rad"]
+
+#: an attitude quaternion (w, x, y, z), body to NED, as the controllers take it
+Quat = tuple[float, float, float, float]
+
+#: the body axes and the parameter limiting each one's rate
+AXES: tuple[tuple[str, str], ...] = (("roll", "MC_ROLLRATE_MAX"), ("pitch", "MC_PITCHRATE_MAX"),
+                                     ("yaw", "MC_YAWRATE_MAX"))
+
+
+def rates_violation(rates: Sequence[float], thrust_body: Sequence[float],
+                    rate_max: Sequence[float]) -> str | None:
+    """Why this rate setpoint (rad/s per axis, thrust in body axes) is outside the envelope,
+    or None if it is inside. ``rate_max`` is rad/s per axis."""
+    for (axis, _param), v in zip(AXES, rates):
+        if not math.isfinite(v):
+            return f"non-finite {axis} rate ({v})"
+    for i, v in enumerate(thrust_body):
+        if not math.isfinite(v):
+            return f"non-finite thrust_body[{i}] ({v})"
+    for (axis, param), v, lim in zip(AXES, rates, rate_max):
+        if abs(v) > lim:
+            return (f"{axis} rate {v:+.2f} rad/s beyond {param} "
+                    f"({math.degrees(lim):.0f} deg/s)")
+    tx, ty, tz = thrust_body[0], thrust_body[1], thrust_body[2]
+    if not -1.0 <= tz <= 0.0 or abs(tx) > 1.0 or abs(ty) > 1.0:
+        return f"thrust_body ({tx:.2f}, {ty:.2f}, {tz:.2f}) outside 0..1 up"
+    return None
+
+
+def tilt_error_rad(q: Quat, qd: Quat) -> float:
+    """The angle (rad) between the body z axis of ``q`` and that of the setpoint ``qd``: the
+    tilt error, blind to heading (a heading error is slow and harmless, a tilt error is not)."""
+    w, x, y, z = q
+    dw, dx, dy, dz = qd
+    dot = ((2.0 * (x * z + w * y)) * (2.0 * (dx * dz + dw * dy))
+           + (2.0 * (y * z - w * x)) * (2.0 * (dy * dz - dw * dx))
+           + (w * w - x * x - y * y + z * z) * (dw * dw - dx * dx - dy * dy + dz * dz))
+    return math.acos(-1.0 if dot < -1.0 else (min(dot, 1.0)))
