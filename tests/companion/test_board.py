@@ -144,3 +144,19 @@ def test_parameters_persist_across_a_reboot(tmp_path):
         assert orch.call("companion", "booted") is True
         assert orch.call("companion", "param", "MC_ROLL_P") == pytest.approx(7.25)
         assert "parameters loaded from slot" in orch.call("companion", "shell", "dmesg")[1]
+
+
+def test_a_damaged_parameter_file_boots_on_defaults(tmp_path):
+    """The disk file is outside input: garbage in it is reported and the companion boots
+    (airframe defaults, saved anew), never a traceback."""
+    import random
+
+    (tmp_path / PARAMS_FILE).write_bytes(random.Random(7).randbytes(5000))  # short, too
+    b = CompanionBoard(out_dir=str(tmp_path), params={"SYS_AUTOSTART": 4011},
+                       boot_ns=BOOT_NS)
+    text = console_text(b.advance(BOOT_NS + 20 * MS, []))
+    assert "[companion] startup done" in text
+    errors = [m for _, sev, mod, m in b.ctl_dmesg() if mod == "param" and sev == 3]
+    assert errors and "parameter store corrupt" in errors[0]
+    assert b.ctl_param("MC_ROLL_P") == pytest.approx(5.5)
+    assert (tmp_path / PARAMS_FILE).stat().st_size == 16384
