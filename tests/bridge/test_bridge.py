@@ -215,3 +215,23 @@ def test_bad_start_fails_with_the_reason(tmp_path, args, reason):
     assert not rig.fmu.system.modules.is_running("uorb_bridge")
     # the port was released: a good start works afterwards
     assert rig.fmu.cmd("uorb_bridge start -d /dev/ttyS2 -r fmu") == 0
+
+
+def test_late_peer_joins_the_stream_cleanly():
+    """The companion starts while the FMU has been sending for a while: what its UART
+    buffered (and overran) before the port opened is flushed, not parsed as cut frames."""
+    rig = Rig()
+    assert rig.fmu.cmd("uorb_bridge start -d /dev/ttyS2 -r fmu") == 0
+    for _ in range(100):
+        rig.fmu.publish("vehicle_attitude", rig.fmu.orb.new("vehicle_attitude"))
+        rig.run_ms(5)
+    assert rig.comp.uart.in_waiting == 1024 and rig.comp.uart.overruns > 0   # overran
+    assert rig.comp.cmd("uorb_bridge start -d /dev/ttyUSB0 -r companion") == 0
+    att = Subscription(rig.comp.orb, "vehicle_attitude")
+    n = 0
+    for _ in range(100):
+        rig.fmu.publish("vehicle_attitude", rig.fmu.orb.new("vehicle_attitude"))
+        rig.run_ms(5)
+        n += len(att.update_all())
+    d = rig.comp.bridge.decoder.drops
+    assert n == 100 and (d.frames, d.lost) == (0, 0)

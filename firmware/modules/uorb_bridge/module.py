@@ -200,6 +200,9 @@ class UorbBridgeModule(ModuleBase):
         self._status_pub = self.advertise("bridge_status")
         self._status = orb.new("bridge_status")
         self.port = open_serial(self.system, self.device, self.baud)
+        # tcflush(TCIFLUSH): what the UART buffered before the port was opened is the middle
+        # of a stream that overran the buffer; read from here on, it resynchronises cleanly
+        self.port.read()
         now = self.platform.time_us()
         self._next_hb_us = now
         self.info(f"{self.role} side on {self.device} at {self.baud} baud: "
