@@ -86,6 +86,13 @@ def test_truncated_frame_dropped_and_counted():
     assert dec.drops.truncated == 1 and dec.drops.crc == 0
 
 
+def test_cut_frame_does_not_hold_back_the_next_one():
+    dec = FrameDecoder(SIZES)
+    long_cut = encode_frame(B, 0, 0, b"x" * 40)[:HEADER_SIZE + 2]   # claims 52 bytes
+    out = dec.feed(long_cut + frame_a(1))                              # 32 bytes in all
+    assert [f.seq for f in out] == [1] and dec.drops.truncated == 1 and dec.pending == 0
+
+
 def test_truncated_frame_at_the_end_counted_on_flush():
     dec = FrameDecoder(SIZES)
     assert dec.feed(frame_a(0) + frame_a(1)[:7]) and dec.pending == 7
@@ -144,5 +151,6 @@ def test_fuzz_decoder(chunks, split):
     assert dec.pending == 0
     # every good frame that was sent whole and not overlapped comes out
     for c in chunks:
-        if len(c) == OVERHEAD + 8 and c[:2] == b"\xb7\x1d" and c[4:8] == A.to_bytes(4, "little"):
+        if len(c) == OVERHEAD + 8 and c[:4] == b"\xb7\x1d\x08\x00" \
+                and c[4:8] == A.to_bytes(4, "little") and crc16(c[2:-2]) == c[-2] | c[-1] << 8:
             assert any(f.payload == c[HEADER_SIZE:-2] for f in out)

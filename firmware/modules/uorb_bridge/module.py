@@ -258,6 +258,7 @@ class UorbBridgeModule(ModuleBase):
             self.link_ok = False
             self.link_lost_count += 1
             self.decoder.flush()              # a frame cut by the loss is truncated
+            self.decoder.forget_sequence()
             self.warn("link lost")
             self._publish_status(now)
         self._poll()

@@ -127,7 +127,8 @@ class DropCounters:
         self.bad_size = 0
         #: bytes skipped while looking for a sync word (not counted as frames)
         self.garbage_bytes = 0
-        #: frames missing by the sender's sequence numbers (never arrived or dropped here)
+        #: frames missing by the sender's sequence numbers while the link was up (never
+        #: arrived, or dropped here); a gap is counted modulo 256
         self.lost = 0
 
     @property
@@ -198,7 +199,13 @@ class FrameDecoder:
                 continue
             end = pos + HEADER_SIZE + length + CRC_SIZE
             if end > n:
-                break                          # the rest has not arrived yet
+                # the rest has not arrived yet, unless a whole good frame already begins
+                # inside: then this one was cut short, and waiting would hold that one back
+                if self._frame_inside(buf, pos + 1, n) == 1:
+                    drops.truncated += 1
+                    pos += 1
+                    continue
+                break
             body = bytes(buf[pos + 2:end - CRC_SIZE])
             (crc,) = _CRC.unpack_from(buf, end - CRC_SIZE)
             if binascii.crc_hqx(body, 0xFFFF) != crc:
@@ -225,6 +232,11 @@ class FrameDecoder:
         if pos:
             del buf[:pos]
         return out
+
+    def forget_sequence(self) -> None:
+        """The link was lost: the next frame starts a new count (the outage itself is the
+        link's loss, not frames lost while it was up)."""
+        self._last_seq = -1
 
     def _note_seq(self, seq: int) -> None:
         if self._last_seq >= 0:
