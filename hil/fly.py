@@ -164,6 +164,8 @@ def main(seed: int = 1, speed: float = 1.0, duration_s: float | None = None,
                 say(f"  companion console (nsh):    hil shell --board companion   (tcp "
                     f"127.0.0.1:{comp_console.tcp_port}, pty {comp_console.pty_name}); "
                     f"TELEM2 is its cable")
+            if dev.get("ros") is not None:
+                say(f"  {'ROS 1:':<28}{dev['ros'].describe()}")
             say("  Ctrl-C to stop.")
             if not keep_safety:
                 # The IO takes the button only once the FMU is ready to arm (~2 s after boot).

@@ -46,6 +46,9 @@ __all__ = ["CLOCK_PERIOD_NS", "NODE_NAME", "RosLink", "add_ros_link", "load_topi
 CLOCK_PERIOD_NS: Final = 4_000_000
 NODE_NAME: Final = "fmu_hil"
 SETPOINT_TOPIC: Final = "/fmu/setpoint_position/local"
+#: the uORB topics the standard views are made of (kept as they arrive)
+VIEW_TOPICS: Final = frozenset({"vehicle_attitude", "sensor_combined", "vehicle_local_position",
+                                "vehicle_global_position", "battery_status"})
 
 
 def out_topic_name(topic: str, instance: int = 0) -> str:
@@ -90,10 +93,13 @@ class RosLink:
         self._clock_pub: Any = None
         self._clock_cls: Any = None
         self._time_cls: Any = None
-        self._views_mod: Any = None
+        from hil.ros import views  # rospy's message classes (no master needed)
+
+        self._views_mod: Any = views
         self._subs: list[Any] = []
         self._lock = threading.Lock()
         self.started = False
+        self.master_uri = ""
         self.counts: dict[str, int] = {"records_from_board": 0, "records_to_board": 0,
                                        "bad_records": 0, "ros_in": 0, "ros_dropped": 0,
                                        "clock": 0}
@@ -107,9 +113,7 @@ class RosLink:
         import rospy
         from rosgraph_msgs.msg import Clock
 
-        from hil.ros import views
-
-        uri = rosgraph.get_master_uri()
+        self.master_uri = uri = rosgraph.get_master_uri()
         if not rosgraph.is_master_online(uri):
             raise OSError(f"--ros: no ROS master at {uri} (start `roscore`, or set "
                           f"ROS_MASTER_URI)")
@@ -140,7 +144,6 @@ class RosLink:
                 and "offboard_control_mode" in self.topics.inbound_names():
             self._subs.append(rospy.Subscriber(SETPOINT_TOPIC, PoseStamped, self._on_setpoint,
                                                queue_size=20))
-        self._views_mod = views
         self.started = True
 
     def _on_in(self, msg: Any, topic: str) -> None:
@@ -179,9 +182,7 @@ class RosLink:
 
     def run_until(self, t_ns: int) -> None:
         self._t_ns = t_ns
-        if not self.started:
-            return
-        if t_ns >= self._next_clock_ns:
+        if self.started and t_ns >= self._next_clock_ns:
             c = self._clock_cls()
             c.clock = self._time_cls(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
             self._clock_pub.publish(c)
@@ -211,16 +212,18 @@ class RosLink:
             return
         topic, instance, data = checked
         self.counts["records_from_board"] += 1
+        view = instance == 0 and topic in VIEW_TOPICS
+        pub = self._pubs.get((topic, instance)) if self.started else None
+        wanted = pub is not None and pub.get_num_connections() > 0
+        if not (view or wanted):
+            return  # nobody listens: not even unpacked
         msg = self.registry.cls(topic).unpack(data)  # type: ignore[attr-defined]
-        if instance == 0:
-            self._latest[topic] = msg
-        if not self.started:
-            return
-        pub = self._pubs.get((topic, instance))
-        if pub is not None and pub.get_num_connections() > 0:
+        if wanted and pub is not None:
             pub.publish(msggen.converter(topic, self.registry).to_ros(msg))
-        if instance == 0:
-            self._publish_views(topic)
+        if view:
+            self._latest[topic] = msg
+            if self.started:
+                self._publish_views(topic)
 
     def _publish_views(self, topic: str) -> None:
         v = self._views_mod
@@ -242,6 +245,11 @@ class RosLink:
         pub = self._views[name]
         if pub.get_num_connections() > 0:
             pub.publish(make())
+
+    def describe(self) -> str:
+        """One line for ``hil fly``'s banner."""
+        return (f"node /{self.node_name} on {self.master_uri}: /clock (use_sim_time), "
+                f"/fmu/out/*, /fmu/in/*, /fmu/setpoint_position/local (docs/ros.md)")
 
     def stats(self) -> dict[str, int]:
         with self._lock:

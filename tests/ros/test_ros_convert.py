@@ -139,3 +139,40 @@ def test_setpoint_from_pose():
     m.pose.position.z = float("nan")
     with pytest.raises(ValueError, match="not finite"):
         views.setpoint_from_pose(m, 1, _new)
+
+
+def test_edge_records_and_drops():
+    """The edge (hil/ros/link.py) without a master: what ROS sends becomes records the
+    companion's ros_bridge accepts, at the next quantum's time; what does not fit is counted
+    and dropped, as are bad records from the board."""
+    from geometry_msgs.msg import PoseStamped
+
+    from firmware.modules.ros_bridge.module import check_record
+    from hil.ros import msggen
+    from hil.ros.link import RosLink, load_topics
+
+    topics = load_topics()
+    link = RosLink(topics, log=lambda text: None)
+    VehicleCommand = msggen.ros_class("vehicle_command")
+    link._on_in(VehicleCommand(command=400, param1=1.0, target_system=1), "vehicle_command")
+    link._on_in(VehicleCommand(command=400, target_system=300), "vehicle_command")  # > uint8
+    m = PoseStamped()
+    m.pose.position.x, m.pose.position.z = 3.0, 4.0
+    link._on_setpoint(m)  # needs views (rospy message classes only)
+    m.pose.position.y = float("inf")
+    link._on_setpoint(m)
+    link.run_until(7_000_000)
+    out = link.outputs(7_000_000)
+    sizes = {t: REG.topic(t).size for t in topics.inbound_names()}
+    got = [check_record(p, sizes) for _port, _t, p in out]
+    assert [g[0] for g in got] == ["vehicle_command", "offboard_control_mode",
+                                   "trajectory_setpoint"]
+    assert {t for _p, t, _v in out} == {7_000_000}
+    cmd = REG.cls("vehicle_command").unpack(got[0][2])
+    assert cmd.command == 400 and cmd.param1 == 1.0 and cmd.timestamp == 7000  # stamped now
+    sp = REG.cls("trajectory_setpoint").unpack(got[2][2])
+    assert sp.position == [0.0, 3.0, -4.0]
+    assert link.stats()["ros_dropped"] == 2 and link.stats()["records_to_board"] == 3
+    link.input("ros", 1, ("vehicle_attitude", 0, b"short"))
+    link.input("ros", 1, ("vehicle_attitude", 0, bytes(REG.topic("vehicle_attitude").size)))
+    assert link.stats()["bad_records"] == 1 and link.stats()["records_from_board"] == 1
