@@ -153,3 +153,22 @@ def test_fuzz_record_check(record):
     else:
         topic, _inst, payload = got
         default_registry().cls(topic).unpack(payload)  # type: ignore[attr-defined]
+
+
+@fuzz(200)
+@given(st.one_of(
+    st.text(max_size=200),
+    st.builds(lambda i, j, junk: TOPICS[:i] + junk + TOPICS[j:],
+              st.integers(0, len(TOPICS)), st.integers(0, len(TOPICS)),
+              st.sampled_from(["", ":", "[", "{", "- ", "\n  - {topic: ", "rate_hz: -", "!!python",
+                               "*a", "&a ", "\t", "instance: 99", "topic: [1]", "'x'"]))))
+def test_fuzz_topic_list(text):
+    """A topic list file (ROMFS or `-c FILE`) loads or is refused with ConfigError, nothing
+    else; what loads names only known topics."""
+    try:
+        topics = parse_topics(text, default_registry(), "t.yaml")
+    except ConfigError:
+        return
+    for t in (*topics.out, *topics.inbound):
+        default_registry().topic(t.topic)
+        assert t.rate_hz >= 0 and 0 <= t.instance <= 3
