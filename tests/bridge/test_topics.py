@@ -101,6 +101,14 @@ def test_rename_both_ways_is_not_a_loop():
     assert len(cfg.sends("fmu")) == 1 and len(cfg.sends("companion")) == 1
 
 
+def test_message_larger_than_a_frame_refused():
+    reg = MessageRegistry()
+    reg.add(parse_msg("uint64 timestamp\nuint8[2000] blob\n", "big"))
+    reg.build()
+    with pytest.raises(BridgeConfigError, match="packs to 2008 bytes, more than a frame"):
+        BridgeConfig.parse("fmu_to_companion: [{topic: big}]\n", reg, "t.yaml")
+
+
 def test_id_collision_refused(monkeypatch):
     from firmware.modules.uorb_bridge import topics
 

@@ -40,8 +40,9 @@ HEADER_SIZE: Final = 10
 CRC_SIZE: Final = 2
 #: bytes a frame adds to its payload
 OVERHEAD: Final = HEADER_SIZE + CRC_SIZE
-#: the largest payload a frame may carry; a longer length field is garbage, not a frame
-MAX_PAYLOAD: Final = 1024
+#: the largest payload a frame may carry (so a whole frame fits NuttX's 1024-byte serial TX
+#: buffer); a longer length field is garbage, not a frame
+MAX_PAYLOAD: Final = 1000
 #: the topic id of the heartbeat frame (no topic id derived from a .msg may be 0)
 HEARTBEAT_ID: Final = 0
 CRC_NAME: Final = "CRC-16/CCITT-FALSE"

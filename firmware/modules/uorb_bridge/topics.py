@@ -31,6 +31,7 @@ from typing import Any, Final
 
 import yaml
 
+from firmware.modules.uorb_bridge.protocol import MAX_PAYLOAD
 from firmware.platform.msgdef import MessageDef, MessageRegistry
 
 __all__ = ["BridgeConfig", "BridgeConfigError", "ROLES", "Route", "layout_text", "topic_id"]
@@ -191,6 +192,9 @@ def _routes(items: Any, key: str, registry: MessageRegistry, source: str
             raise BridgeConfigError(
                 f"{where}: {topic} ({mdef.name}) cannot be published as {as_topic}: that "
                 f"topic carries {as_def.name}, not the same message type")
+        if mdef.size > MAX_PAYLOAD:
+            raise BridgeConfigError(f"{where}: {topic} packs to {mdef.size} bytes, more than "
+                                    f"a frame carries ({MAX_PAYLOAD})")
         if (topic, inst) in seen:
             raise BridgeConfigError(f"{where}: {topic} instance {inst} listed twice")
         seen.add((topic, inst))
