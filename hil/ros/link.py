@@ -27,6 +27,7 @@ type (hil.ros.msggen.ConversionError) or a non-finite setpoint is counted and dr
 
 from __future__ import annotations
 
+import struct
 import sys
 import threading
 from collections import deque
@@ -83,8 +84,8 @@ class RosLink:
         self._t_ns = 0
         self._next_clock_ns = 0
         self._out: list[Any] = []
-        #: (topic, uORB message) from rospy's threads, drained by the orchestrator's
-        self._rx: deque[tuple[str, Any]] = deque(maxlen=10_000)
+        #: (topic, packed uORB message) from rospy's threads, drained by the orchestrator's
+        self._rx: deque[tuple[str, bytes]] = deque(maxlen=10_000)
         self._latest: dict[str, Any] = {}
         self._sizes = {t: self.registry.topic(t).size
                        for t in {*(x.topic for x in topics.out), *topics.inbound_names()}}
@@ -154,19 +155,35 @@ class RosLink:
         except (msggen.ConversionError, TypeError, ValueError) as exc:
             self._drop(f"/fmu/in/{topic}: {exc}")
             return
-        self._rx.append((topic, uorb))
+        data = self._pack(uorb, f"/fmu/in/{topic}")
+        if data is not None:
+            self._rx.append((topic, data))
+
+    def _pack(self, uorb: Any, where: str) -> bytes | None:
+        """rospy thread: an unstamped message (``timestamp`` 0, e.g. from ``rostopic pub``)
+        stamped with the present virtual time, packed; None (dropped and counted) for a float
+        beyond float32's range, which does not pack."""
+        if getattr(uorb, "timestamp", 1) == 0:
+            uorb.timestamp = self._t_ns // 1000
+        try:
+            return bytes(uorb.pack())
+        except (struct.error, OverflowError) as exc:
+            self._drop(f"{where}: {exc}")
+            return None
 
     def _on_setpoint(self, msg: Any) -> None:
         """rospy thread: mavros's position setpoint (ENU) -> trajectory_setpoint and
-        offboard_control_mode, stamped with the virtual time of the next quantum start."""
-        now_us = self._t_ns // 1000
+        offboard_control_mode, stamped with the present virtual time."""
         try:
-            sp, mode = self._views_mod.setpoint_from_pose(msg, now_us, self.registry_new)
+            sp, mode = self._views_mod.setpoint_from_pose(msg, 0, self.registry_new)
         except (ValueError, TypeError, AttributeError) as exc:
             self._drop(f"{SETPOINT_TOPIC}: {exc}")
             return
-        self._rx.append(("offboard_control_mode", mode))
-        self._rx.append(("trajectory_setpoint", sp))
+        sp_data = self._pack(sp, SETPOINT_TOPIC)
+        mode_data = self._pack(mode, SETPOINT_TOPIC)
+        if sp_data is not None and mode_data is not None:  # both or neither
+            self._rx.append(("offboard_control_mode", mode_data))
+            self._rx.append(("trajectory_setpoint", sp_data))
 
     def registry_new(self, topic: str, **fields: Any) -> Any:
         return self.registry.cls(topic)(**fields)
@@ -191,11 +208,8 @@ class RosLink:
             self._next_clock_ns = (t_ns // p + 1) * p
         rx = self._rx
         while rx:
-            topic, msg = rx.popleft()
-            if topic in ("trajectory_setpoint", "offboard_control_mode", "vehicle_command") \
-                    and getattr(msg, "timestamp", 1) == 0:
-                msg.timestamp = t_ns // 1000  # unstamped (a quick rostopic pub): now
-            self._out.append((PORT_NAME, t_ns, (topic, 0, msg.pack())))
+            topic, data = rx.popleft()
+            self._out.append((PORT_NAME, t_ns, (topic, 0, data)))
             self.counts["records_to_board"] += 1
             self.counts["ros_in"] += 1
 

@@ -153,6 +153,7 @@ def test_edge_records_and_drops():
 
     topics = load_topics()
     link = RosLink(topics, log=lambda text: None)
+    link.run_until(7_000_000)  # the quantum's end: what arrives now is stamped 7 ms
     VehicleCommand = msggen.ros_class("vehicle_command")
     link._on_in(VehicleCommand(command=400, param1=1.0, target_system=1), "vehicle_command")
     link._on_in(VehicleCommand(command=400, target_system=300), "vehicle_command")  # > uint8
@@ -160,6 +161,8 @@ def test_edge_records_and_drops():
     m.pose.position.x, m.pose.position.z = 3.0, 4.0
     link._on_setpoint(m)  # needs views (rospy message classes only)
     m.pose.position.y = float("inf")
+    link._on_setpoint(m)
+    m.pose.position.y = 1e300  # finite, but no float32
     link._on_setpoint(m)
     link.run_until(7_000_000)
     out = link.outputs(7_000_000)
@@ -172,7 +175,8 @@ def test_edge_records_and_drops():
     assert cmd.command == 400 and cmd.param1 == 1.0 and cmd.timestamp == 7000  # stamped now
     sp = REG.cls("trajectory_setpoint").unpack(got[2][2])
     assert sp.position == [0.0, 3.0, -4.0]
-    assert link.stats()["ros_dropped"] == 2 and link.stats()["records_to_board"] == 3
+    assert sp.timestamp == 7000
+    assert link.stats()["ros_dropped"] == 3 and link.stats()["records_to_board"] == 3
     link.input("ros", 1, ("vehicle_attitude", 0, b"short"))
     link.input("ros", 1, ("vehicle_attitude", 0, bytes(REG.topic("vehicle_attitude").size)))
     assert link.stats()["bad_records"] == 1 and link.stats()["records_from_board"] == 1
