@@ -236,3 +236,17 @@ def test_late_peer_joins_the_stream_cleanly():
         n += len(att.update_all())
     d = rig.comp.bridge.decoder.drops
     assert n == 100 and (d.frames, d.lost) == (0, 0)
+
+
+def test_heartbeats_carry_the_peers_counters(rig):
+    for _ in range(50):
+        rig.fmu.publish("vehicle_attitude", rig.fmu.orb.new("vehicle_attitude"))
+        rig.run_ms(10)
+    fmu, comp = rig.fmu.bridge, rig.comp.bridge
+    hb_us = 1e6 / comp.config.heartbeat_hz
+    assert comp.heartbeats_rx >= 0.5e6 / hb_us
+    peer = comp.peer                           # the FMU's counters when it last sent one
+    assert 0 <= rig.now_us - peer.uptime_us <= hb_us + 1000
+    assert 30 < peer.tx_frames <= fmu.tx_frames and 0 < peer.rx_frames <= fmu.rx_frames
+    st = Subscription(rig.comp.orb, "bridge_status").copy()
+    assert st.peer_tx_frames == peer.tx_frames > 0
