@@ -14,15 +14,19 @@ the module (its status is printed) and the node.
 
 from __future__ import annotations
 
+import re
 import signal
 import sys
-from typing import Any
+from typing import Any, Final
 
 __all__ = ["main", "parse_args"]
 
 USAGE = ("usage: hil rosnode MODULE [MODULE_ARGS...] [--param NAME=VALUE ...] [--name NODE]\n"
          "  a flight-stack module (hil params lists its parameters) as a ROS 1 node:\n"
          "  /fmu/out/<topic> -> module -> /fmu/in/<topic>, time from /clock (use_sim_time)")
+
+
+_NAME: Final = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 
 class ArgError(ValueError):
@@ -63,6 +67,10 @@ def parse_args(argv: list[str]) -> tuple[str, list[str], dict[str, str], str | N
             margs.append(a)
     if module is None:
         raise ArgError("no module given")
+    if not _NAME.match(module):
+        raise ArgError(f"{module!r} is not a module name")
+    if name is not None and not _NAME.match(name):
+        raise ArgError(f"--name {name!r}: a ROS node name is a letter, then letters, digits, _")
     return module, margs, params, name
 
 
@@ -104,7 +112,11 @@ def main(argv: list[str]) -> int:
     except (ModuleError, ParamError, ArgError) as exc:
         print(f"hil rosnode: {exc}", file=sys.stderr)
         return 2
-    node = RosNode(host, node_name=name or module)
+    try:
+        node = RosNode(host, node_name=name or module)
+    except OSError as exc:
+        print(f"hil rosnode: {exc}", file=sys.stderr)
+        return 1
     rospy = node.rospy
     private = rospy.get_param("~", {})
     if isinstance(private, dict) and private:

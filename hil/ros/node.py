@@ -233,6 +233,11 @@ class RosNode:
         msggen.ros_python_path()
         import rospy
 
+        import rosgraph
+
+        uri = rosgraph.get_master_uri()
+        if init_node and not rosgraph.is_master_online(uri):
+            raise OSError(f"no ROS master at {uri} (start `roscore`, or set ROS_MASTER_URI)")
         self.rospy = rospy
         self.host = host
         self.msggen = msggen

@@ -8,7 +8,9 @@ rospy publisher and read by a plain rospy subscriber and by Debian's ``rostopic 
 
 from __future__ import annotations
 
+import functools
 import math
+import os
 import re
 import signal
 import subprocess
@@ -19,11 +21,14 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from firmware.platform.module import ModuleError
 from firmware.platform.params import ParamError
 from hil.ros.node import ModuleHost, ros_topic
-from hil.rosnode import ArgError, parse_args
+from hil.rosnode import ArgError, _coerce, parse_args
+from tests.fuzzing import fuzz
 
 ROOT = Path(__file__).resolve().parents[2]
 T0_NS = 100_000_000_000   # the first /clock: 100 s of virtual time
@@ -121,6 +126,43 @@ def test_rosnode_arguments() -> None:
         with pytest.raises(ArgError):
             parse_args(bad)
     assert ros_topic("/fmu/out/", "sensor_gyro", 1) == "/fmu/out/sensor_gyro_1"
+
+
+_WORDS = st.sampled_from(["mc_att_control", "land_detector", "--param", "--name", "--param=",
+                          "MC_ROLL_P=7", "=", "MC_ROLL_P=", "x:=y", "-d", "--", "fixedwing",
+                          "NOT_A_PARAM=1", "MC_ROLL_P=1e99", "MC_ATT_IMPL=0x2", ""])
+
+
+@functools.lru_cache(maxsize=1)
+def _params() -> Any:
+    return ModuleHost("mc_att_control").params
+
+
+@fuzz(examples=300)
+@given(argv=st.lists(st.one_of(_WORDS, st.text(max_size=12)), max_size=7))
+def test_fuzz_rosnode_arguments_parse_or_refuse(argv: list[str]) -> None:
+    """Any command line: parsed (module first, NAME=VALUE params) or ArgError, never a crash;
+    parameter values of a parsed line coerce to their declared type or ArgError."""
+    try:
+        module, _margs, params, _name = parse_args(argv)
+    except ArgError:
+        return
+    assert module and not module.startswith("-")
+    defs = _params()
+    try:
+        values = _coerce(defs, params)
+    except ArgError:
+        return
+    for pname, v in values.items():
+        assert defs.defs[pname].coerce(v) == v
+
+
+def test_rosnode_without_a_master_says_so() -> None:
+    env = {**os.environ, "ROS_MASTER_URI": "http://127.0.0.1:9"}
+    out = subprocess.run([sys.executable, "-m", "hil.cli", "rosnode", "mc_att_control"],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 1
+    assert "hil rosnode: no ROS master at http://127.0.0.1:9" in out.stderr
 
 
 # -- the real node, in its own process -------------------------------------------------------------
