@@ -7,10 +7,12 @@ import pytest
 
 from companion.board import CompanionBoard
 from companion.disk import PARAMS_FILE
+from firmware.romfs import ROMFS_ROOT
 from hil.orchestrator import BoardSpec, Orchestrator
 
 MS = 1_000_000
 BOOT_NS = 10 * MS
+ROMFS_RC = ROMFS_ROOT / "init.d" / "rc.companion"
 
 
 def console_text(records):
@@ -118,7 +120,9 @@ def test_unknown_module_in_startup_is_reported_and_the_rest_runs(tmp_path):
         in text
     assert "not_a_command: command not found" in text
     # uorb_bridge is not in this table: the script's line fails clearly and the script goes on
-    assert "rc.companion:45: nsh: uorb_bridge: command not found" in text
+    lineno = next(i for i, line in enumerate(ROMFS_RC.read_text().splitlines(), 1)
+                  if line.startswith("uorb_bridge start"))
+    assert f"/etc/init.d/rc.companion:{lineno}: nsh: uorb_bridge: command not found" in text
     assert "[companion] startup done" in text
     assert b.ctl_modules() == ["mc_att_control"]
 
