@@ -231,9 +231,8 @@ class RosNode:
         from hil.ros import msggen
 
         msggen.ros_python_path()
-        import rospy
-
         import rosgraph
+        import rospy
 
         uri = rosgraph.get_master_uri()
         if init_node and not rosgraph.is_master_online(uri):

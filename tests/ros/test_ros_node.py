@@ -59,7 +59,7 @@ TILT_ERR_MAX_DEG = 10.0
 ALT_BAND_M = 1.0
 #: wall-clock limits (generous: a loaded 2-core machine runs below 1x)
 START_TIMEOUT_S = 60.0
-TAKEOFF_TIMEOUT_S = 60.0
+TAKEOFF_TIMEOUT_S = 90.0
 
 
 class _Proc:
@@ -182,9 +182,15 @@ def test_ros_node_flies_then_the_fmu_takes_over(roscore: str, ros_env: dict[str,
             in node.output()
 
         # take off once the preflight checks pass (GPS fix, estimator)
+        last = [""]
+
         def takeoff() -> bool:
-            return "arm: accepted" in sh("commander takeoff").lower()
-        _wait(takeoff, TAKEOFF_TIMEOUT_S, "commander takeoff to be accepted", every_s=1.0)
+            last[0] = sh("commander takeoff")
+            return "arm: accepted" in last[0].lower()
+        try:
+            _wait(takeoff, TAKEOFF_TIMEOUT_S, "commander takeoff to be accepted", every_s=1.0)
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; last answer: {last[0]!r}\n{fly.output(8)}") from None
 
         def status() -> str:
             return sh("mc_att_companion status")
