@@ -1,7 +1,7 @@
 """Standard ROS views of the vehicle's uORB topics, and mavros's position setpoint back.
 
 What a ROS 1 user's tools expect (rviz, robot_localization, navigation), in the frames and
-sign conventions mavros publishes (ENU ``map`` world, FLU ``base_link`` body; hil/ros/frames.py):
+sign conventions mavros publishes (ENU ``map`` world, FLU ``base_link`` body; common/frames.py):
 
 =================================  ===========================  =================================
 topic                              type                         from
@@ -27,8 +27,9 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-from hil.ros.frames import (enu_to_ned, frd_to_flu, ned_to_enu, q_enu_flu_from_ned_frd,
-                            quat_conj, quat_rotate, yaw_from_quat, yaw_ned_from_enu)
+from common.frames import (enu_to_ned, frd_to_flu, ned_to_enu, q_enu_flu_from_ned_frd,
+                           yaw_ned_from_enu)
+from common.quaternion import q_conj, q_rotate, q_yaw
 from hil.ros.msggen import ros_python_path
 
 ros_python_path()
@@ -97,7 +98,7 @@ def odom(lpos: Any, att: Any, sc: Any | None) -> Odometry:
     m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = ned_to_enu(
         (lpos.x, lpos.y, lpos.z))
     _set_q(m.pose.pose.orientation, q)
-    v_body = quat_rotate(quat_conj(q), ned_to_enu((lpos.vx, lpos.vy, lpos.vz)))
+    v_body = q_rotate(q_conj(q), ned_to_enu((lpos.vx, lpos.vy, lpos.vz)))
     m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z = v_body
     if sc is not None:
         w = frd_to_flu((sc.gyro_rad[0], sc.gyro_rad[1], sc.gyro_rad[2]))
@@ -154,7 +155,7 @@ def setpoint_from_pose(msg: PoseStamped, now_us: int, orb_new: Any) -> tuple[Any
     qn = math.sqrt(o.w * o.w + o.x * o.x + o.y * o.y + o.z * o.z)
     # an all-zero orientation (a user who set only the position): keep heading north (PX4 0)
     yaw_ned = 0.0 if not qn > 1e-6 or not math.isfinite(qn) else yaw_ned_from_enu(
-        yaw_from_quat((o.w / qn, o.x / qn, o.y / qn, o.z / qn)))
+        q_yaw((o.w / qn, o.x / qn, o.y / qn, o.z / qn)))
     ned = enu_to_ned(xyz)
     sp = orb_new("trajectory_setpoint", timestamp=now_us, position=list(ned),
                  velocity=[NAN] * 3, acceleration=[NAN] * 3, jerk=[NAN] * 3,

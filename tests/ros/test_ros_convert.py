@@ -1,4 +1,4 @@
-"""Frames at the ROS edge (hil/ros/frames.py, hil/ros/views.py): PX4's NED/FRD against ROS's
+"""Frames at the ROS edge (common/frames.py, hil/ros/views.py): PX4's NED/FRD against ROS's
 ENU/FLU, as mavros converts them. Known attitudes, round trips, and the views built from uORB
 messages (no ROS master needed: only the message classes)."""
 
@@ -10,9 +10,9 @@ import random
 import pytest
 
 from firmware.platform.msgdef import default_registry
-from hil.ros.frames import (enu_to_ned, frd_to_flu, ned_to_enu, q_enu_flu_from_ned_frd,
-                            q_ned_frd_from_enu_flu, quat_from_yaw, quat_mul, quat_rotate,
-                            yaw_enu_from_ned, yaw_from_quat, yaw_ned_from_enu)
+from common.frames import (enu_to_ned, frd_to_flu, ned_to_enu, q_enu_flu_from_ned_frd,
+                           q_ned_frd_from_enu_flu, yaw_enu_from_ned, yaw_ned_from_enu)
+from common.quaternion import q_from_euler, q_mul, q_rotate, q_yaw
 
 REG = default_registry()
 
@@ -44,11 +44,11 @@ def test_world_vectors():
 def test_level_nose_north_is_yaw_90_in_enu():
     q = q_enu_flu_from_ned_frd((1.0, 0.0, 0.0, 0.0))
     assert _close(q, (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)))
-    assert yaw_from_quat(q) == pytest.approx(math.pi / 2)
+    assert q_yaw(q) == pytest.approx(math.pi / 2)
 
 
 def test_nose_east_is_identity_in_enu():
-    q = q_enu_flu_from_ned_frd(quat_from_yaw(math.pi / 2))  # PX4 yaw +90: nose east
+    q = q_enu_flu_from_ned_frd(q_from_euler(0.0, 0.0, math.pi / 2))  # PX4 yaw +90: nose east
     assert _same_rotation(q, (1.0, 0.0, 0.0, 0.0), 1e-12)
 
 
@@ -57,8 +57,8 @@ def test_right_wing_down_roll():
     r = math.radians(30)
     q_ned = (math.cos(r / 2), math.sin(r / 2), 0.0, 0.0)
     q = q_enu_flu_from_ned_frd(q_ned)
-    assert _close(quat_rotate(q, (1.0, 0.0, 0.0)), (0.0, 1.0, 0.0))  # forward: north
-    assert _close(quat_rotate(q, (0.0, 1.0, 0.0)), (-math.cos(r), 0.0, math.sin(r)))
+    assert _close(q_rotate(q, (1.0, 0.0, 0.0)), (0.0, 1.0, 0.0))  # forward: north
+    assert _close(q_rotate(q, (0.0, 1.0, 0.0)), (-math.cos(r), 0.0, math.sin(r)))
 
 
 def test_orientation_round_trip_and_body_vectors():
@@ -69,8 +69,8 @@ def test_orientation_round_trip_and_body_vectors():
         assert _same_rotation(back, q, 1e-9)
         # a body vector seen in the world is the same physical vector in both conventions
         v = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-5, 5))
-        assert _close(ned_to_enu(quat_rotate(q, v)),
-                      quat_rotate(q_enu_flu_from_ned_frd(q), frd_to_flu(v)), 1e-9)
+        assert _close(ned_to_enu(q_rotate(q, v)),
+                      q_rotate(q_enu_flu_from_ned_frd(q), frd_to_flu(v)), 1e-9)
 
 
 def test_headings():
@@ -79,15 +79,15 @@ def test_headings():
     assert yaw_ned_from_enu(math.pi) == pytest.approx(-math.pi / 2)  # west
     for y in (-3.0, -1.0, 0.2, 2.9):
         assert yaw_ned_from_enu(yaw_enu_from_ned(y)) == pytest.approx(y)
-        q = quat_mul(quat_from_yaw(y), (1.0, 0.0, 0.0, 0.0))
-        assert yaw_from_quat(q_enu_flu_from_ned_frd(q)) == pytest.approx(yaw_enu_from_ned(y))
+        q = q_mul(q_from_euler(0.0, 0.0, y), (1.0, 0.0, 0.0, 0.0))
+        assert q_yaw(q_enu_flu_from_ned_frd(q)) == pytest.approx(yaw_enu_from_ned(y))
 
 
 def test_views_from_uorb():
     from hil.ros import views
 
     yaw = 0.3
-    att = _new("vehicle_attitude", timestamp=2_500_000, q=list(quat_from_yaw(yaw)))
+    att = _new("vehicle_attitude", timestamp=2_500_000, q=list(q_from_euler(0.0, 0.0, yaw)))
     lpos = _new("vehicle_local_position", timestamp=2_600_000, x=2.0, y=1.0, z=-3.0,
                 vx=1.0, vy=0.0, vz=-0.5)
     sc = _new("sensor_combined", timestamp=2_700_001, gyro_rad=[0.1, 0.2, 0.3],
@@ -97,7 +97,7 @@ def test_views_from_uorb():
     assert p.header.stamp.secs == 2 and p.header.stamp.nsecs == 600_000_000
     assert p.header.frame_id == "map"
     o = p.pose.orientation
-    assert yaw_from_quat((o.w, o.x, o.y, o.z)) == pytest.approx(math.pi / 2 - yaw)
+    assert q_yaw((o.w, o.x, o.y, o.z)) == pytest.approx(math.pi / 2 - yaw)
     imu = views.imu(att, sc)
     assert (imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z) == \
         pytest.approx((0.1, -0.2, -0.3))

@@ -14,8 +14,9 @@ and against this emulator:
   nose north (PX4: identity) is, in ROS, yawed +90 degrees from east;
 * headings: ``yaw_ENU = pi/2 - yaw_NED`` (both wrapped to [-pi, pi]).
 
-Pure functions on tuples (no rospy, no numpy): unit tested in tests/ros/test_ros_convert.py.
-Quaternions are ``(w, x, y, z)`` tuples, Hamilton convention, as PX4's and ROS's.
+Pure functions on tuples (no rospy, no numpy; quaternions from :mod:`common.quaternion`, w x y
+z, Hamilton, as PX4's and ROS's), in the bottom package since frames are every layer's
+business: unit tested in tests/ros/test_ros_convert.py.
 """
 
 from __future__ import annotations
@@ -23,13 +24,11 @@ from __future__ import annotations
 import math
 from typing import Final
 
-__all__ = ["Quat", "Vec3", "enu_to_ned", "flu_to_frd", "frd_to_flu", "ned_to_enu",
-           "q_enu_flu_from_ned_frd", "q_ned_frd_from_enu_flu", "quat_from_yaw", "quat_mul",
-           "quat_rotate", "quat_conj", "wrap_pi", "yaw_enu_from_ned", "yaw_from_quat",
-           "yaw_ned_from_enu"]
+from common.quaternion import Quat, Vec3, q_conj, q_mul, q_norm, wrap_pi
 
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
+__all__ = ["Q_ENU_NED", "Q_FRD_FLU", "enu_to_ned", "flu_to_frd", "frd_to_flu", "ned_to_enu",
+           "q_enu_flu_from_ned_frd", "q_ned_frd_from_enu_flu", "yaw_enu_from_ned",
+           "yaw_ned_from_enu"]
 
 _H: Final = math.sqrt(0.5)
 #: the rotation taking NED vectors to ENU ones (180 degrees about (1, 1, 0)/sqrt 2)
@@ -57,57 +56,14 @@ def flu_to_frd(v: Vec3) -> Vec3:
     return (v[0], -v[1], -v[2])
 
 
-def quat_mul(a: Quat, b: Quat) -> Quat:
-    """The Hamilton product ``a * b`` (apply ``b``, then ``a``)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw)
-
-
-def quat_conj(q: Quat) -> Quat:
-    return (q[0], -q[1], -q[2], -q[3])
-
-
-def _canonical(q: Quat) -> Quat:
-    """``q`` normalised with w >= 0 (q and -q are the same rotation; one form for tests and
-    for consumers that compare quaternions)."""
-    n = math.sqrt(sum(c * c for c in q)) or 1.0
-    s = 1.0 / n if q[0] >= 0 else -1.0 / n
-    return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
-
-
-def quat_rotate(q: Quat, v: Vec3) -> Vec3:
-    """``v`` rotated by the unit quaternion ``q`` (``q * v * q^-1``)."""
-    r = quat_mul(quat_mul(q, (0.0, v[0], v[1], v[2])), quat_conj(q))
-    return (r[1], r[2], r[3])
-
-
 def q_enu_flu_from_ned_frd(q: Quat) -> Quat:
     """PX4's attitude (FRD body -> NED) as ROS's orientation (FLU body -> ENU)."""
-    return _canonical(quat_mul(quat_mul(Q_ENU_NED, q), Q_FRD_FLU))
+    return q_norm(q_mul(q_mul(Q_ENU_NED, q), Q_FRD_FLU))
 
 
 def q_ned_frd_from_enu_flu(q: Quat) -> Quat:
     """A ROS orientation (FLU -> ENU) as PX4's attitude (FRD -> NED): the inverse map."""
-    return _canonical(quat_mul(quat_mul(quat_conj(Q_ENU_NED), q), quat_conj(Q_FRD_FLU)))
-
-
-def wrap_pi(a: float) -> float:
-    """An angle in [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def yaw_from_quat(q: Quat) -> float:
-    """The heading (ZYX Euler yaw) of the rotation ``q``."""
-    w, x, y, z = q
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def quat_from_yaw(yaw: float) -> Quat:
-    return (math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0))
+    return q_norm(q_mul(q_mul(q_conj(Q_ENU_NED), q), q_conj(Q_FRD_FLU)))
 
 
 def yaw_ned_from_enu(yaw_enu: float) -> float:
