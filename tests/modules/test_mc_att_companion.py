@@ -9,7 +9,9 @@ companion is tests/system/test_companion_flight.py.
 from __future__ import annotations
 
 import math
+import re
 
+import numpy as np
 import pytest
 
 from firmware.modules.mc_att_control.handover import HANDOVER_TAU_S
@@ -197,8 +199,11 @@ def test_stale_companion_falls_back_within_one_attitude_period_of_the_timeout(ri
     took_us = first_fmu[0] - t_last
     assert TIMEOUT_MS * 1000 < took_us <= TIMEOUT_MS * 1000 + PERIOD_US + 500
     warn = rig.messages(WARN)
-    assert len(warn) == 1 and "FMU law flies (latched): stale: no rate setpoint from the " \
-        "companion for" in warn[0] and "(MC_CMP_TIMEOUT 20 ms)" in warn[0]
+    assert len(warn) == 1 and warn[0].startswith(
+        "FMU law flies (latched): stale: no companion rate setpoint for 2") \
+        and warn[0].endswith(" ms (MC_CMP_TIMEOUT 20 ms)")
+    # the whole line fits the log's message (log_message.text: 127 characters)
+    assert len(f"[mc_att_companion] {warn[0]}") <= 127
     # bumpless: the first FMU output continues the last forwarded one
     assert dist(first_fmu[1], CMP[:3]) < 0.05
     # latched: the companion is back, fresh and sane, and is not taken again
@@ -228,7 +233,8 @@ def test_each_envelope_rule_falls_back_at_once_bumpless_and_nothing_bad_gets_thr
     rig.step(1, cmp=cmp)
     rig.step(FADE_STEPS, cmp=CMP)                 # good again: latched all the same
     warn = rig.messages(WARN)
-    assert len(warn) == 1 and warn[0].endswith(reason), warn
+    assert len(warn) == 1 and warn[0] == f"FMU law flies (latched): {reason}", warn
+    assert len(f"[mc_att_companion] {warn[0]}") <= 127
     rows = rig.rows[n0 - 1:]
     # the bad setpoint never reached the rate controller, the switch had no step
     assert all(math.isfinite(v) for r in rows for v in (*r[1], r[2]))
@@ -236,6 +242,18 @@ def test_each_envelope_rule_falls_back_at_once_bumpless_and_nothing_bad_gets_thr
     assert dist(rows[1][1], CMP[:3]) < 0.05
     assert largest_step(rows) < 0.05
     assert rig.last() == pytest.approx(fmu, abs=1e-5)
+
+
+def test_a_companion_at_its_own_rate_limit_is_inside_the_envelope(rig):
+    """Found in the mission: the companion's mc_att_control clamps to the same MC_YAWRATE_MAX,
+    and its float32 message rounds 200 deg/s (3.4906585 rad/s) up by 1e-7: that is the limit,
+    not beyond it."""
+    lim = float(np.float32(math.radians(200.0)))
+    assert lim > math.radians(200.0)
+    fmu_law(rig)
+    rig.step(FADE_STEPS, cmp=(0.0, 0.0, lim, -0.5))
+    assert not rig.messages(WARN)
+    assert rig.last()[2] == pytest.approx(lim, abs=1e-6)
 
 
 def test_tilt_error_beyond_the_limit_falls_back_after_the_allowed_time(rig):
@@ -255,8 +273,10 @@ def test_tilt_error_beyond_the_limit_falls_back_after_the_allowed_time(rig):
     rig.step(70, cmp=CMP)
     t0 = rig.src.q_since_us                       # the first attitude this far off
     warn = rig.messages(WARN)
-    assert len(warn) == 1 and "envelope: tilt error 45.0 deg beyond MC_CMP_ERR_MAX (30 deg)" \
-        in warn[0]
+    assert len(warn) == 1 and re.fullmatch(
+        r"FMU law flies \(latched\): envelope: tilt error 45.0 deg beyond MC_CMP_ERR_MAX "
+        r"\(30 deg\) for 20\d ms", warn[0]), warn
+    assert len(f"[mc_att_companion] {warn[0]}") <= 127
     t_warn = next(ts for ts, lvl, mod, _t in rig.b.platform.dmesg
                   if mod == "mc_att_companion" and lvl == WARN and ts >= rig.t0_us)
     assert 200_000 < t_warn - t0 <= 200_000 + PERIOD_US + 500

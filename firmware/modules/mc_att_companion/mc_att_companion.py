@@ -170,7 +170,7 @@ class McAttCompanionModule(McAttControlModule):
         """Why the companion may not fly now ("" if it may): stale, or outside the envelope."""
         age_us = self._age_us(now)
         if age_us > self.timeout_us:
-            return (f"stale: no rate setpoint from the companion for {age_us / 1000:.1f} ms "
+            return (f"stale: no companion rate setpoint for {age_us / 1000:.1f} ms "
                     f"(MC_CMP_TIMEOUT {self.timeout_us // 1000} ms)")
         self.age_max_us = max(self.age_max_us, age_us)
         c = self.cmp
@@ -199,7 +199,8 @@ class McAttCompanionModule(McAttControlModule):
         self.fallback_reason = reason
         self.fallback_us = now
         self.fmu_outputs += 1
-        self.warn(f"companion attitude law failed, FMU law flies (latched): {reason}")
+        # short: the log's message (log_message.text) holds 127 characters with the prefix
+        self.warn(f"FMU law flies (latched): {reason}")
         self.engage.active = False
         ho = self.handover
         # the superclass's fade (a swap at start) may still run: take it out, then fade from
