@@ -30,6 +30,7 @@ from board.protocols import BoardHandle
 from board.wiring import WORLD, Wire
 from hil.cpu_plan import CpuPlan
 from hil.devices import HostDevice
+from hil.wire_faults import WireFault, WireFaults
 from hil.trace import TraceWriter
 
 __all__ = ["BoardSpec", "Orchestrator", "BoardDied", "TraceWriter"]
@@ -50,7 +51,7 @@ class BoardSpec:
     kwargs: dict[str, Any] = field(default_factory=dict)
 
 
-class Orchestrator:
+class Orchestrator(WireFaults):
     """Runs boards (as processes, or in this process) and an optional world in lockstep."""
 
     def __init__(self, boards: dict[str, BoardSpec], wiring: Iterable[Wire] = (),
@@ -104,7 +105,7 @@ class Orchestrator:
         self._posted_to: dict[str, int] = {name: 0 for name in boards}
         self._routes: dict[tuple[str, str], list[tuple[str, str]]] = {}
         #: faults on wires: (board, output port) -> what the wire does to each record
-        self._wire_faults: dict[tuple[str, str], _WireFault] = {}
+        self._wire_faults: dict[tuple[str, str], WireFault] = {}
         self._trace = TraceWriter(trace_path, quantum_ns, self.specs) if trace_path else None
         self._wall_start: float | None = None
         self._wall_elapsed = 0.0
@@ -355,20 +356,6 @@ class Orchestrator:
                     inbox[dst_board].append(rec if dst_port == rec[0]
                                             else (dst_port, rec[1], rec[2]))
 
-    def _route_all_faulty(self, board: str, records: list) -> None:
-        """:meth:`_route_all` while some wire has a fault (swapped in, so a healthy harness
-        pays nothing): records on a faulty wire go through its fault first."""
-        faults = self._wire_faults
-        clean = []
-        for rec in records:
-            fault = faults.get((board, rec[0]))
-            if fault is None:
-                clean.append(rec)
-            else:
-                clean.extend(fault.carry(rec))
-        if clean:
-            type(self)._route_all(self, board, clean)
-
     def _route(self, board: str, port: str, t_ns: int, payload: Any) -> None:
         fault = self._wire_faults.get((board, port))
         if fault is not None:
@@ -471,70 +458,6 @@ class Orchestrator:
             return 0.0
         return (self.t_ns - self._t_at_wall_start) / NS_PER_S / self._wall_elapsed
 
-    # -- wire faults -------------------------------------------------------------------------
-
-    def _wire(self, board: str, port: str) -> tuple[str, str]:
-        key = (board, port)
-        if key not in self._routes:
-            wired = sorted(f"{b}.{p}" for b, p in self._routes)
-            raise ValueError(f"no wire leaves {board}.{port} (wired outputs: "
-                             f"{', '.join(wired)})")
-        return key
-
-    def _port_kind(self, board: str, port: str) -> str:
-        if board == WORLD:
-            return "value" if not port.startswith("rc_") else "uart"
-        handle = self.handles.get(board)
-        if handle is not None:
-            for name, kind, _direction in handle.ports:
-                if name == port:
-                    return kind
-        return "value"
-
-    def set_wire_fault(self, board: str, port: str, fault: _WireFault | None) -> None:
-        """Put ``fault`` on the wire leaving ``board.port`` (None: a healthy wire again)."""
-        key = self._wire(board, port)
-        if fault is None:
-            self._wire_faults.pop(key, None)
-        else:
-            self._wire_faults[key] = fault
-        if self._wire_faults:
-            self._route_all = self._route_all_faulty  # type: ignore[method-assign]
-        else:
-            self.__dict__.pop("_route_all", None)
-
-    def cut_wire(self, board: str, port: str) -> None:
-        """The wire leaving ``board.port`` breaks now: it carries nothing more. What the far end
-        then sees is what an open wire gives: a UART's RX idles at mark (no bytes), a PWM input
-        sees no pulses, a pin input floats to its pull. Bytes already on the wire (sent before
-        now) still arrive."""
-        key = self._wire(board, port)
-        kind = self._port_kind(board, port)
-        cut = _WireFault(kind)
-        self.set_wire_fault(board, port, None)
-        if kind == "pwm":
-            self._route(board, port, self.t_ns, (0, 0))
-        elif kind == "pin":
-            self._route(board, port, self.t_ns, -1)
-        self.set_wire_fault(*key, cut)
-
-    def mend_wire(self, board: str, port: str) -> None:
-        """Reconnect a cut wire: a PWM or pin output's present level reaches the far end again
-        (the last one the driver produced while the wire was open)."""
-        key = self._wire(board, port)
-        fault = self._wire_faults.get(key)
-        self.set_wire_fault(board, port, None)
-        if fault is None or fault.kind not in ("pwm", "pin"):
-            return
-        level = fault.last[2] if fault.last is not None else None
-        if level is None and board != WORLD and board not in self.dead:
-            level = self.call(board, "port_level", port)
-        if level is not None:
-            self._route(board, port, self.t_ns, level)
-
-    def wire_faults(self) -> list[str]:
-        return [f"{b}.{p}" for b, p in self._wire_faults]
-
     def call(self, board: str, method: str, *args: Any) -> Any:
         """A control call on a board (shell command, fault injection, state query), made at the
         orchestrator's current time (a board skipped while idle catches up first)."""
@@ -585,18 +508,3 @@ class Orchestrator:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-class _WireFault:
-    """What a faulty wire does to each record crossing it. The base is an open wire: nothing
-    crosses (the last record is kept so that mending the wire can restore a level)."""
-
-    def __init__(self, kind: str = "value") -> None:
-        self.kind = kind
-        self.last: tuple | None = None
-        self.records_lost = 0
-
-    def carry(self, rec: tuple) -> list:
-        self.last = rec
-        self.records_lost += 1
-        return []
