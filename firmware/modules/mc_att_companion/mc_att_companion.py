@@ -134,14 +134,14 @@ class McAttCompanionModule(McAttControlModule):
         """The FMU's law always (warm standby); the companion's rates instead while fresh and
         inside the envelope, in the air, until the first failure."""
         fmu = super()._law(q, dt, now)
-        m = self.sub_cmp.update()
-        if m is not None:
+        sub = self.sub_cmp
+        if sub.updated():
             if self.cmp is None:
                 self.info("first rate setpoint from the companion: it flies while fresh "
                           f"(MC_CMP_TIMEOUT {self.timeout_us // 1000} ms) and inside the "
                           "envelope")
-            self.cmp = m
-            self.received += 1
+            self.received += sub.node.generation - sub.last_gen
+            self.cmp = sub.copy()         # the latest: any before it is superseded
         if self.source == _FALLBACK or self.cmp is None:
             self.fmu_outputs += 1
             return fmu
