@@ -26,9 +26,10 @@ Times are integer nanoseconds of the world clock. ``update(t_ns)`` is called onc
 
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass
+
+from hil.world.pulse_train import PulseTrainInput
 
 __all__ = ["EscParams", "Esc"]
 
@@ -47,17 +48,14 @@ class EscParams:
     tau_s: float = 0.02  # first-order lag of the throttle output
 
 
-class Esc:
+class Esc(PulseTrainInput):
     """One ESC. ``throttle`` is its output in [0, 1] (fraction of battery voltage to the motor)."""
 
     __slots__ = (
         "params",
         "dt_ns",
         "_alpha",
-        "_pending",
         "_armed",
-        "_valid",
-        "_width_us",
         "_cmd",
         "_y",
         "_deadline_ns",
@@ -72,10 +70,8 @@ class Esc:
         self.params = p
         self.dt_ns = dt_ns
         self._alpha = 1.0 - math.exp(-dt_ns * 1e-9 / p.tau_s) if p.tau_s > 0 else 1.0
-        self._pending: list[tuple[int, int, int]] = []  # (t_ns, high_ns, period_ns), sorted
+        super().__init__()
         self._armed = False
-        self._valid = False
-        self._width_us = 0.0
         self._cmd = 0.0
         self._y = 0.0
         self._deadline_ns = _NEVER
@@ -83,16 +79,6 @@ class Esc:
         self._timeout_ns = round(p.signal_timeout_s * 1e9)
         self._arm_ns = round(p.arm_low_s * 1e9)
         self._span_us = p.pwm_max_us - p.pwm_min_us
-
-    # -- inputs ---------------------------------------------------------------------------
-    def set_signal(self, t_ns: int, high_ns: int, period_ns: int) -> None:
-        """From t_ns on the signal is a pulse of high_ns every period_ns (0 high: line low)."""
-        ev = (int(t_ns), int(high_ns), int(period_ns))
-        pend = self._pending
-        if not pend or pend[-1][0] <= ev[0]:
-            pend.append(ev)
-        else:
-            bisect.insort(pend, ev)
 
     # -- state ----------------------------------------------------------------------------
     @property
@@ -109,20 +95,11 @@ class Esc:
     def armed(self) -> bool:
         return self._armed
 
-    @property
-    def signal_valid(self) -> bool:
-        return self._valid
-
-    @property
-    def pulse_us(self) -> float:
-        """Width of the current valid pulse train (us), 0 if none."""
-        return self._width_us if self._valid else 0.0
-
     # -- stepping -------------------------------------------------------------------------
     def update(self, t_ns: int) -> float:
         """Apply inputs stamped at or before t_ns, run timers, advance the lag by one dt."""
         if self._pending and self._pending[0][0] <= t_ns:
-            self._apply_pending(t_ns)
+            self._apply_due(t_ns)  # a deadline between an event and now fires below
         if t_ns >= self._deadline_ns:
             self._deadline(t_ns)
         u = self._cmd
@@ -133,17 +110,6 @@ class Esc:
                 y = u
             self._y = y
         return y
-
-    def _apply_pending(self, t_ns: int) -> None:
-        pend = self._pending
-        i = 0
-        n = len(pend)
-        while i < n and pend[i][0] <= t_ns:
-            ev_t, high_ns, period_ns = pend[i]
-            self._apply(ev_t, high_ns, period_ns)
-            i += 1
-        del pend[:i]
-        # a deadline that fell between an applied event and now fires in update()
 
     def _apply(self, ev_t: int, high_ns: int, period_ns: int) -> None:
         p = self.params

@@ -18,8 +18,9 @@ see is the physical one. Times are integer nanoseconds of the world clock.
 
 from __future__ import annotations
 
-import bisect
 from dataclasses import dataclass
+
+from hil.world.pulse_train import PulseTrainInput
 
 __all__ = ["ServoParams", "ServoInput"]
 
@@ -33,55 +34,30 @@ class ServoParams:
     max_period_s: float = 0.5  # slower trains than this are not a servo signal
 
 
-class ServoInput:
+class ServoInput(PulseTrainInput):
     """One servo's signal input. ``command`` is the position command in [-1, 1]."""
 
-    __slots__ = ("params", "_pending", "_valid", "_width_us", "_cmd", "_max_period_ns")
+    __slots__ = ("params", "_cmd", "_max_period_ns")
 
     def __init__(self, params: ServoParams | None = None) -> None:
         p = params or ServoParams()
         self.params = p
-        self._pending: list[tuple[int, int, int]] = []  # (t_ns, high_ns, period_ns), sorted
-        self._valid = False
-        self._width_us = 0.0
+        super().__init__()
         self._cmd = 0.0
         self._max_period_ns = round(p.max_period_s * 1e9)
-
-    def set_signal(self, t_ns: int, high_ns: int, period_ns: int) -> None:
-        """From t_ns on the signal is a pulse of high_ns every period_ns (0 high: line low)."""
-        ev = (int(t_ns), int(high_ns), int(period_ns))
-        pend = self._pending
-        if not pend or pend[-1][0] <= ev[0]:
-            pend.append(ev)
-        else:
-            bisect.insort(pend, ev)
 
     @property
     def command(self) -> float:
         return self._cmd
 
-    @property
-    def signal_valid(self) -> bool:
-        return self._valid
-
-    @property
-    def pulse_us(self) -> float:
-        """Width of the current valid pulse train (us), 0 if none."""
-        return self._width_us if self._valid else 0.0
-
     def update(self, t_ns: int) -> float:
         """Apply inputs stamped at or before t_ns; returns the position command."""
         pend = self._pending
         if pend and pend[0][0] <= t_ns:
-            i = 0
-            n = len(pend)
-            while i < n and pend[i][0] <= t_ns:
-                self._apply(pend[i][1], pend[i][2])
-                i += 1
-            del pend[:i]
+            self._apply_due(t_ns)
         return self._cmd
 
-    def _apply(self, high_ns: int, period_ns: int) -> None:
+    def _apply(self, ev_t: int, high_ns: int, period_ns: int) -> None:
         p = self.params
         width_us = high_ns * 1e-3
         if not (0 < high_ns < period_ns <= self._max_period_ns

@@ -188,37 +188,17 @@ class World:
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt. (An airframe with servos steps through
         :meth:`_step_with_servos` instead, bound over this method in ``__init__``.)"""
-        updates = self._esc_updates
-        setters = self._throttle_set
-        currents = self._current_get
-        jsb = self._jsb_throttle
         battery = self.battery
-        bstep = battery.step
         run = self.fdm.run
+        drive = self._drive_motors
+        load = self._load_battery
         vmax = self._vmax
-        k_power = vmax / self._bp.esc_efficiency
-        i_avionics = self._bp.avionics_a
         dt_ns = self.dt_ns
-        nm = len(updates)
         for _ in range(n):
             t = self.t_ns
-            scale = battery.voltage_v / vmax
-            for i in range(nm):
-                u = updates[i](t) * scale
-                if u > 1.0:
-                    u = 1.0
-                if u != jsb[i]:
-                    jsb[i] = u
-                    setters[i](u)
+            drive(t, battery.voltage_v / vmax)
             run()
-            # Battery current: motor electrical power (u * Vmax * I_motor) over bus voltage.
-            p = 0.0
-            for i in range(nm):
-                im = currents[i]()
-                if im > 0.0:
-                    p += jsb[i] * im
-            v = battery.voltage_v
-            bstep(i_avionics + self._extra_a + (p * k_power / v if v > 0.5 else 0.0))
+            load()
             self.t_ns = t + dt_ns
             self.steps += 1
 
@@ -229,18 +209,12 @@ class World:
         s_set = self._servo_set
         s_cmd = self._servo_cmd
         ns = len(s_updates)
-        updates = self._esc_updates
-        setters = self._throttle_set
-        currents = self._current_get
-        jsb = self._jsb_throttle
         battery = self.battery
-        bstep = battery.step
         run = self.fdm.run
+        drive = self._drive_motors
+        load = self._load_battery
         vmax = self._vmax
-        k_power = vmax / self._bp.esc_efficiency
-        i_avionics = self._bp.avionics_a
         dt_ns = self.dt_ns
-        nm = len(updates)
         # The ESCs see the pack through their bus capacitors (BUS_ALPHA per step: ~3 ms). Fed
         # the pack voltage of the step before directly, the loop pack voltage -> motor
         # currents -> pack current -> pack voltage oscillates step by step and collapses once
@@ -256,25 +230,41 @@ class World:
                     s_cmd[i] = c
                     s_set[i](c)
             bus += BUS_ALPHA * (battery.voltage_v - bus)
-            scale = bus / vmax
-            for i in range(nm):
-                u = updates[i](t) * scale
-                if u > 1.0:
-                    u = 1.0
-                if u != jsb[i]:
-                    jsb[i] = u
-                    setters[i](u)
+            drive(t, bus / vmax)
             run()
-            p = 0.0
-            for i in range(nm):
-                im = currents[i]()
-                if im > 0.0:
-                    p += jsb[i] * im
-            v = battery.voltage_v
-            bstep(i_avionics + self._extra_a + (p * k_power / v if v > 0.5 else 0.0))
+            load()
             self.t_ns = t + dt_ns
             self.steps += 1
         self._bus_v = bus
+
+    def _drive_motors(self, t: int, scale: float) -> None:
+        """The ESCs' throttles at ``t`` (their commands times the supply they see, ``scale`` of
+        full voltage), passed to JSBSim only when they change."""
+        updates = self._esc_updates
+        setters = self._throttle_set
+        jsb = self._jsb_throttle
+        for i in range(len(updates)):
+            u = updates[i](t) * scale
+            if u > 1.0:
+                u = 1.0
+            if u != jsb[i]:
+                jsb[i] = u
+                setters[i](u)
+
+    def _load_battery(self) -> None:
+        """One battery step under the motors' electrical power (u * Vmax * I_motor over the
+        bus voltage) and the avionics."""
+        currents = self._current_get
+        jsb = self._jsb_throttle
+        p = 0.0
+        for i in range(len(self._esc_updates)):
+            im = currents[i]()
+            if im > 0.0:
+                p += jsb[i] * im
+        battery = self.battery
+        v = battery.voltage_v
+        battery.step(self._bp.avionics_a + self._extra_a
+                     + (p * (self._vmax / self._bp.esc_efficiency) / v if v > 0.5 else 0.0))
 
     def run_until(self, t_ns: int) -> None:
         """Step while a whole step fits before t_ns (lockstep quantum end)."""
