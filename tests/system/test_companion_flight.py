@@ -21,7 +21,13 @@ many assertions:
   leaves no kick), the whole attitude error under 3 degrees; the vehicle flies home and
   lands.
 
-Figures (seed 1, 500 us quantum, measured 2026-11-27) are in the print and the report.
+Measured (seed 1, the default 500 us quantum, 2026-11-27): track error 2.06 m, landing
+0.85 m, altitude error 0.66 m, attitude error rms 0.55 deg (the FMU alone: 2.05, 0.85, 0.65,
+0.54); 6434 rate setpoints of the companion forwarded, at most 7.3 ms old, the tilt error at
+most 20.1 deg at the corners (MC_CMP_ERR_MAX 30); cable cut at 46.0 s, the FMU's law 16.3 ms
+later (the last message 21.8 ms old); tilt error 0.67 deg in the 2 s after (5.0 before).
+27.6 s of CPU; at a 1 ms quantum 23.5 s with the same figures to 0.02 m, kept at the
+default as that is what `hil run --companion-att` flies.
 """
 
 from __future__ import annotations
