@@ -17,7 +17,7 @@ BOOT_NS = 2 * 10**9
 
 
 def _run_once(virtual_s: int = VIRTUAL_S) -> float:
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
     from hil.turntable import Turntable
 
     b = FmuV2Board(seed=1, firmware="sensors")

@@ -6,7 +6,7 @@ implementation:
 
 * :class:`BoardHardware`: what a firmware :class:`firmware.system.System` sees of its board,
   ``system.hw`` (the buses, the pins, the ADC, the spec); driver modules build their drivers
-  from it and a :class:`board.specs.DevicePlace`. :class:`board.fmu_v2.FmuV2Board` is one.
+  from it and a :class:`board.specs.DevicePlace`. :class:`fmu.board.FmuV2Board` is one.
 * :class:`BoardHandle`: a board as the orchestrator drives it, quantum by quantum, in this
   process (:class:`board.endpoint.LocalHandle`) or in its own (``hil.boardproc.ProcessHandle``,
   ``OffsetHandle`` after a reboot).

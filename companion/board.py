@@ -235,7 +235,7 @@ class CompanionBoard(Board):
 
     def ctl_topic(self, topic: str, instance: int = 0) -> dict[str, Any] | None:
         """The latest message of a topic instance as a dict (None if never published)."""
-        from board.fmu_v2 import _plain
+        from fmu.board import _plain
 
         node = self.platform.orb.node(topic, instance)
         msg = node.last

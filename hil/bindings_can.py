@@ -4,7 +4,7 @@ virtual python-can bus, frames both ways.
 The spec is ``<interface>:<channel>`` as python-can names them: ``socketcan:vcan0``,
 ``slcan:/dev/ttyACM0@115200`` (python-can's slcan channel syntax: serial port @ serial baud),
 ``virtual:chan0``, ``pcan:PCAN_USBBUS1``... The bus is opened at the emulated bus's bit rate
-(1 Mbit/s). The other side is one node on the emulated bus (:mod:`board.can_port`): what the
+(1 Mbit/s). The other side is one node on the emulated bus (:mod:`fmu.can_port`): what the
 real bus carries is sent onto the emulated one when the emulator polls it (between quanta), and
 every frame of the emulated nodes is sent to the real bus as it completes; frames relayed from
 the real bus are not sent back to it. Meant for paced runs (``hil fly``): a real bus runs in

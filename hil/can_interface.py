@@ -9,7 +9,7 @@ so every python-can tool reaches the virtual board::
     python -m can.viewer -i hil -c CAN1
     dronecan.make_node("CAN1", bustype="hil", bitrate=1000000, node_id=100)
 
-The tool is one node on the emulated bus (:mod:`board.can_port`): its frames are arbitrated,
+The tool is one node on the emulated bus (:mod:`fmu.can_port`): its frames are arbitrated,
 ACKed and timed as board/can.py models, and it receives every frame of the other nodes.
 
 Where the bus is:

@@ -1,7 +1,7 @@
 """The host side of an emulated CAN bus: the tools attached to it, in this process or outside.
 
 :class:`CanHost` is a host device (:mod:`hil.devices`) owning the ``can1`` and ``can1_host``
-ports wired to the FMU's adapter node (:mod:`board.can_port`). Every attached tool is an
+ports wired to the FMU's adapter node (:mod:`fmu.can_port`). Every attached tool is an
 :class:`Endpoint` with a tag: frames from the bus go to all of them; a frame a tool sends enters
 the bus at the current virtual time (as the adapter receives it over USB), and once it went out
 its confirmation (with its wire time) comes back, and it is handed to the *other* endpoints, as

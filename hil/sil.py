@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from common.truth import TRUTH_FIELDS
 from hil.world import World
 from ioproc.mixer import parse_mixer_text

@@ -137,7 +137,7 @@ def build_system(cfg: SystemConfig) -> tuple[Orchestrator, dict[str, Any]]:
     host = HOST.get(cfg.airframe)
     if host is not None and host.fmu_devices:
         fmu_kwargs["extra_devices"] = host.fmu_devices  # names: a trace records plain data
-    boards = {"fmu": BoardSpec("board.fmu_v2:FmuV2Board", fmu_kwargs),
+    boards = {"fmu": BoardSpec("fmu.board:FmuV2Board", fmu_kwargs),
               "io": BoardSpec("ioproc.board:IoV2Board", {"name": "io", "seed": cfg.seed})}
     companion_wires: list[Wire] = []
     if cfg.companion or cfg.companion_att or cfg.ros:

@@ -80,7 +80,7 @@ def shared_across_workers(tmp_path_factory, worker_id: str, key: str, make):
 def booted_fmu(params: dict, boot_ns: int = 1_500_000_000):
     """An in-process FMU board booted through rcS with ``params`` (no orchestrator, no IO):
     for module tests that stand in for the rest of the stack by publishing its topics."""
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
 
     board = FmuV2Board(seed=1, sd_root=None, params=params)
     board.kernel.run(boot_ns)

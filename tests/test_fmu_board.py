@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from hil.turntable import Turntable
 from hil.world.atmosphere import isa_pressure_pa
 from hil.world.magnetic import earth_field_ned_gauss

@@ -3,7 +3,7 @@ parameters and the sensor topics."""
 
 import pyulog
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from hil.turntable import Turntable
 
 

@@ -3,7 +3,7 @@ FRAM image gives the defaults with a clear message."""
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from tests.helpers import terminates
 
 BOOTED = 1_500_000_000

@@ -47,7 +47,7 @@ RUN_NS = 4 * 10**9
 
 def sensor_path_digest(run_ns: int = RUN_NS) -> tuple[str, dict[str, int]]:
     """Run the workload and return (hex digest, a few counts for a readable failure)."""
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
     from hil.turntable import Turntable
 
     h = hashlib.sha256()

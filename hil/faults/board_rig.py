@@ -1,6 +1,6 @@
 """Faults on boards built in-process: the catalogue's rig for a plain pytest test.
 
-A driver test builds an :class:`board.fmu_v2.FmuV2Board` (or the IO board, or a variant from a
+A driver test builds an :class:`fmu.board.FmuV2Board` (or the IO board, or a variant from a
 spec) and runs its kernel; :class:`BoardRig` applies catalogue faults to it through the same
 control hooks the orchestrated system uses (``board.call("fault", ...)``, ``ctl_i2c_fault``,
 ``ctl_spi_miso_stuck``, ...), so a kind means the same thing on both rigs and acts on the

@@ -1,4 +1,4 @@
-"""The host's adapter node on an emulated CAN bus (board/can_port.py) and the TCP record format
+"""The host's adapter node on an emulated CAN bus (fmu/can_port.py) and the TCP record format
 (hil/can_interface_wire.py): what a tool's frames do on the wire, and bad input from outside."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from board.board import Board
 from board.can import CanBus, CanController, frame_length_bits
-from board.can_port import TX_QUEUE_MAX, CanHostPort
+from fmu.can_port import TX_QUEUE_MAX, CanHostPort
 from hil.can_interface_wire import KIND_FRAME, RECORD, WireFrame, decode, encode
 from tests.fuzzing import fuzz
 

@@ -16,7 +16,7 @@ import typing
 import pytest
 
 from board.endpoint import LocalHandle
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from board.protocols import BoardHandle, BoardHardware
 from hil.boardproc import OffsetHandle, ProcessHandle
 from hil.devices import DeviceHub, HostDevice
@@ -61,7 +61,7 @@ def test_board_handles_have_what_the_orchestrator_uses(cls):
 
 
 def test_a_rebooted_boards_handle_passes_the_rest_to_the_new_one():
-    handle = LocalHandle("fmu", "board.fmu_v2:FmuV2Board", {"firmware": "none"})
+    handle = LocalHandle("fmu", "fmu.board:FmuV2Board", {"firmware": "none"})
     offset = OffsetHandle(handle, 5_000_000)
     assert all(hasattr(offset, m) for m in members(BoardHandle))
     assert offset.is_alive() and offset.ports == handle.ports

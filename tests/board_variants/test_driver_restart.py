@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 
 BOOTED_NS = 1_500_000_000
 MS = 1_000_000

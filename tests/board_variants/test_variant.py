@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from board.specs import FMU_V2, I2cDevice, SpecError
 from firmware import romfs
 from firmware.platform.module import FMU_V2_MODULES, board_modules

@@ -13,7 +13,7 @@ import statistics
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from board.uart import UartWire
 from tests.bridge.rig import Side
 

@@ -260,7 +260,7 @@ def io_board_rig() -> tuple[Rig, Any]:
 
 def fmu_board_with_px4io(mixer: str = MIXER, controls_hz: int = 400):
     """Orchestrator factory: an FMUv2 board whose only firmware is px4io and a controls source."""
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
 
     board = FmuV2Board(firmware="none")
     p = board.platform

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from board.i2c import I2cFault
 from board.specs import FMU_V2, MS4525DO_AIRSPEED
 from firmware.drivers.airspeed.ms4525 import DRV_DIFF_PRESS_DEVTYPE_MS4525, decode

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from hil.turntable import Turntable
 
 S = 1_000_000_000

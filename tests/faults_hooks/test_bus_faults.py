@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from board.i2c import I2cBus, I2cFault, I2cTarget
 from board.kernel import Kernel
 from board.spi import SpiBus, SpiTarget

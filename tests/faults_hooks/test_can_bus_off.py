@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from hil.faults import FaultError, get_kind
 
 S = 1_000_000_000

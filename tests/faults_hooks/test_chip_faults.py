@@ -9,7 +9,7 @@ import statistics
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from hil.faults import FaultError, get_kind
 from hil.turntable import Turntable
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from board.specs import FMU_V2, MS4525DO_AIRSPEED
 from hil.faults import BoardRig, FaultError
 from hil.turntable import Turntable

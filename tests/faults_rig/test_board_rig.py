@@ -12,7 +12,7 @@ import dataclasses
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from board.specs import FMU_V2, I2cDevice
 from hil.faults import BoardRig, FaultError, get_kind
 from hil.turntable import Turntable

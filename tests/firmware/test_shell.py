@@ -408,7 +408,7 @@ def _type_on_console(board, line, budget_ns=4_000_000_000):
 def test_a_deeply_nested_console_line_does_not_stop_the_board():
     # Issue 18, defect 2: this line recursed in the interpreter and the RecursionError stopped
     # the FMU's kernel (KernelError). Now it is refused and the board answers the next line.
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
 
     board = FmuV2Board(seed=1, sd_root=None)
     board.advance(1_500_000_000, [])

@@ -16,7 +16,7 @@ from typing import ClassVar
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from firmware.modules.ekf2 import PARAMS as EKF_PARAMS
 from firmware.modules.ekf2 import Ekf2Module
 from firmware.modules.ekf2.gps import LocalProjection

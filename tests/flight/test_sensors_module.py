@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from firmware.lib.rotation import rotation_matrix
 from firmware.modules.sensors import PARAMS, SensorsModule, isa_altitude_m
 from firmware.platform.params import Params

@@ -136,7 +136,7 @@ def test_tokenizer_returns_words_or_a_syntax_error(line: str) -> None:
 
 @pytest.fixture(scope="module")
 def fmu(tmp_path_factory: pytest.TempPathFactory):
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
 
     board = FmuV2Board(seed=3, sd_root=str(tmp_path_factory.mktemp("sd")))
     board.advance(1_500_000_000, [])

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from firmware.platform.uorb import Subscription
 from firmware.system import System
 

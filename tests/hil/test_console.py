@@ -23,7 +23,7 @@ def session(tmp_path_factory):
     (d / "sd").mkdir()
     bridge = SerialBridge("console", poll_every=1)
     orch = Orchestrator(
-        {"fmu": BoardSpec("board.fmu_v2:FmuV2Board",
+        {"fmu": BoardSpec("fmu.board:FmuV2Board",
                           {"fram_path": str(d / "fram.bin"), "sd_root": str(d / "sd")})},
         uart_link(("fmu", "console"), (WORLD, "console")), world=DeviceHub(bridge),
         mode="local")

@@ -5,7 +5,7 @@ publishes on the emulated board; the MS5611 driver likewise through SpiDevHandle
 
 from __future__ import annotations
 
-from board.fmu_v2 import BOOT_TO_SENSORS_NS, FmuV2Board
+from fmu.board import BOOT_TO_SENSORS_NS, FmuV2Board
 from firmware.drivers.magnetometer.hmc5883 import Hmc5883Driver
 from hil.hostbus import SMBusHandle, SpiDevHandle
 from hil.smbus_emulated import EmulatedSMBus

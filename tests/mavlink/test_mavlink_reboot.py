@@ -15,7 +15,7 @@ def test_reboot_keeps_parameters(tmp_path):
     kwargs = {"fram_path": str(tmp_path / "fram.bin"), "sd_root": str(tmp_path / "sd"),
               "params": {"SYS_AUTOSTART": 4011}}  # a vehicle: the commander handles reboot
     log: list[str] = []
-    orch = Orchestrator({"fmu": BoardSpec("board.fmu_v2:FmuV2Board", kwargs)}, udp_wires("gcs"),
+    orch = Orchestrator({"fmu": BoardSpec("fmu.board:FmuV2Board", kwargs)}, udp_wires("gcs"),
                         world=DeviceHub(gcs), mode="process", log=log.append)
     with orch:
         gcs.attach(orch)

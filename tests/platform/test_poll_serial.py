@@ -306,7 +306,7 @@ def test_closing_a_port_while_polled_leaves_the_other_items(platform, kernel, wi
 def test_on_the_fmu_board_telem2_is_a_pollable_file():
     """The real board: /dev/ttyS2 is USART3 (TELEM2); a peer's bytes wake a task that polls
     the port with a topic, on the board's own kernel and platform."""
-    from board.fmu_v2 import FmuV2Board
+    from fmu.board import FmuV2Board
     from firmware.system import System
 
     board = FmuV2Board(firmware="none")

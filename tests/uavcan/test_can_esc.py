@@ -5,7 +5,7 @@ when disarmed or when the commands stop."""
 
 from __future__ import annotations
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 
 MS = 1_000_000
 PERIOD_NS = 2_500_000

@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from types import SimpleNamespace
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from hil.faults import get_kind
 
 MS = 1_000_000

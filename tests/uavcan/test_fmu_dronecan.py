@@ -12,7 +12,7 @@ import dronecan
 import dronecan.transport as dt
 
 from board.can import CanController
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from firmware.drivers.device import BUS_TYPE_UAVCAN, DeviceId
 from firmware.lib.uavcan.transfer import encode
 from hil.faults import get_kind

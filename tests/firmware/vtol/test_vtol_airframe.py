@@ -5,7 +5,7 @@ host wires the FMU's AUX outputs to the world only for a model that uses them.""
 
 import pytest
 
-from board.fmu_v2 import FmuV2Board
+from fmu.board import FmuV2Board
 from board.wiring import FMU_AUX_WIRES, PIXHAWK1, WORLD, with_fmu_aux
 
 MS = 1_000_000

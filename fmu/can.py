@@ -1,6 +1,6 @@
 """The FMU's CAN side: its bxCAN controllers, the buses, the DroneCAN nodes plugged into CAN1,
 and the controls the fault catalogue and the tests use on them (a part of
-:class:`~board.fmu_v2.FmuV2Board`, kept apart so the board file stays one idea).
+:class:`~fmu.board.FmuV2Board`, kept apart so the board file stays one idea).
 
 The buses are built on first use (a board that never touches CAN pays nothing); the nodes are
 the board's ``uavcan_nodes`` entries: a node ID alone is a bare NodeStatus node, ``"gnss"``,
@@ -15,7 +15,7 @@ __all__ = ["FmuCanSide"]
 
 
 class FmuCanSide:
-    """Mixin of :class:`~board.fmu_v2.FmuV2Board`: uses its kernel, spec, seed, environment,
+    """Mixin of :class:`~fmu.board.FmuV2Board`: uses its kernel, spec, seed, environment,
     ``_rng``, ``expose_output``, ``_bus`` and the CAN attributes its ``__init__`` sets
     (``_can``, ``can_ctrl``, ``can_nodes``, ``can_host``, ``_uavcan_nodes``)."""
 

@@ -55,8 +55,8 @@ import numpy as np
 
 from board.adc import Adc
 from board.board import Board
-from board.fmu_can import FmuCanSide
-from board.fmu_pwm import FmuPwmSide
+from fmu.can import FmuCanSide
+from fmu.pwm import FmuPwmSide
 from board.gpio import Gpio
 from board.i2c import I2cBus
 from board.spi import SpiBus
@@ -241,10 +241,10 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
     def _expose_host_port(self, connector: str) -> None:
         """Let the host reach a connector that is normally closed inside the board (``hil fly
         --can``/``--uart``, the python-can plug-in): a CAN bus (``CAN1``) gets an adapter node
-        (:mod:`board.can_port`, port ``can1``); a UART with no port of its own (``gps``, its
+        (:mod:`fmu.can_port`, port ``can1``); a UART with no port of its own (``gps``, its
         module excluded with ``exclude=("ublox_m8",)``) is exposed under its role."""
         if connector in {c.name for c in self.spec.can}:
-            from board.can_port import CanHostPort
+            from fmu.can_port import CanHostPort
 
             self.can_host[connector] = CanHostPort(self, self.can[connector], connector.lower())
             return

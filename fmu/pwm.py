@@ -1,6 +1,6 @@
 """The FMU's own PWM outputs: the timers behind AUX1..AUX6 and their ports.
 
-A mixin of :class:`board.fmu_v2.FmuV2Board`. The board's spec lists the FMU-side outputs
+A mixin of :class:`fmu.board.FmuV2Board`. The board's spec lists the FMU-side outputs
 (``BoardSpecData.pwm``: on a Pixhawk 1 AUX1-4 on TIM1 CH4..CH1, AUX5-6 on TIM4 CH2..CH3); each
 timer a listed output uses is built (TIM1 as an advanced timer, whose outputs need BDTR.MOE)
 and each output with a port name is exposed as a ``pwm`` port (``aux1``..``aux6``), which the
