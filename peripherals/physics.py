@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Final
 from common.units import G0_M_S2
+from common.quaternion import Vec3
 
 __all__ = ["Environment"]
 
-Vec3 = tuple[float, float, float]
 
 
 @dataclass

@@ -46,6 +46,7 @@ from firmware.lib.rotation import board_to_sensor
 from peripherals.errors import ImuErrorModel
 from peripherals.faults import FaultState
 from peripherals.regs import RegisterFile
+from common.quaternion import Vec3
 
 __all__ = [
     "BOOT_NS",
@@ -92,7 +93,6 @@ OUT_LAST: Final = 0x2D
 
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float],
                 tuple[float, float, float]]
-Vec3 = tuple[float, float, float]
 Raw3 = tuple[int, int, int]
 #: What a saturated axis reads: the positive rail.
 RAILS: Final[Raw3] = (32767, 32767, 32767)

@@ -20,11 +20,9 @@ import math
 from collections.abc import Sequence
 from typing import Final
 
+from common.quaternion import Quat, body_z_ned
 
 __all__ = ["AXES", "RATE_TOLERANCE", "rates_violation", "tilt_error_rad"]
-
-#: an attitude quaternion (w, x, y, z), body to NED, as the controllers take it
-Quat = tuple[float, float, float, float]
 
 #: the body axes and the parameter limiting each one's rate
 AXES: tuple[tuple[str, str], ...] = (("roll", "MC_ROLLRATE_MAX"), ("pitch", "MC_PITCHRATE_MAX"),
@@ -59,9 +57,7 @@ def rates_violation(rates: Sequence[float], thrust_body: Sequence[float],
 def tilt_error_rad(q: Quat, qd: Quat) -> float:
     """The angle (rad) between the body z axis of ``q`` and that of the setpoint ``qd``: the
     tilt error, blind to heading (a heading error is slow and harmless, a tilt error is not)."""
-    w, x, y, z = q
-    dw, dx, dy, dz = qd
-    dot = ((2.0 * (x * z + w * y)) * (2.0 * (dx * dz + dw * dy))
-           + (2.0 * (y * z - w * x)) * (2.0 * (dy * dz - dw * dx))
-           + (w * w - x * x - y * y + z * z) * (dw * dw - dx * dx - dy * dy + dz * dz))
+    ax, ay, az = body_z_ned(q)
+    bx, by, bz = body_z_ned(qd)
+    dot = ax * bx + ay * by + az * bz
     return math.acos(-1.0 if dot < -1.0 else (min(dot, 1.0)))

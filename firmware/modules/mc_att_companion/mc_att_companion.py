@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 from firmware.modules.mc_att_companion.envelope import rates_violation, tilt_error_rad
 from firmware.modules.mc_att_control.handover import Handover
+from common.quaternion import Quat
 from firmware.modules.mc_att_control.mc_att_control import PARAMS as MC_ATT_PARAMS
 from firmware.modules.mc_att_control.mc_att_control import McAttControlModule
 from firmware.platform.params import ParamDef
@@ -45,9 +46,6 @@ if TYPE_CHECKING:
     from firmware.system import System
 
 __all__ = ["PARAMS", "McAttCompanionModule"]
-
-#: an attitude quaternion (w, x, y, z), body to NED, as the controllers take it
-Quat = tuple[float, float, float, float]
 
 _G: Final = "Multicopter Attitude Control"
 

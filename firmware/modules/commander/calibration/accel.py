@@ -41,11 +41,11 @@ from firmware.modules.commander.calibration.orientation import (
 )
 from firmware.modules.commander.calibration.sides import ANNOUNCE, DETECT, SideBySide
 from firmware.modules.sensors.params import N_ACCEL_CAL
+from common.quaternion import Vec3
 
 __all__ = ["AccelCalibration", "fit_axis"]
 
 COLLECT: Final = 2
-Vec3 = tuple[float, float, float]
 
 
 def fit_axis(true: list[float], raw: list[float]) -> tuple[float, float]:
