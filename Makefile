@@ -27,9 +27,11 @@ demo: $(STAMP)
 # Two passes: everything but the wall-clock-paced tests, spread over the cores (pytest-xdist),
 # then the paced ones alone, so that no other test takes the CPU they need to keep pace.
 # The tier's equivalence test builds a quick tier of its own when `make native` has not, on one
-# worker while the other runs the rest (tests/hil/test_native.py).
+# worker while the other runs the rest (tests/hil/test_native.py). --dist loadfile keeps a file
+# on one worker (a flight its tests share is flown once, nobody waits for it) and the slow
+# tests start first (tests/conftest.py), so the short ones even out the end.
 test: $(STAMP) ros
-	$(PY) -m pytest -q -n auto -m "not paced"
+	$(PY) -m pytest -q -n auto --dist loadfile -m "not paced"
 	$(PY) -m pytest -q -m paced
 
 # ROS 1 from Debian (the ROS edge, hil/ros/, and its tests): installed with apt-get only when

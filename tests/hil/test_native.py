@@ -153,6 +153,7 @@ def _check(tmp: Path, name: str, env_extra: dict[str, str], seconds: float) -> d
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # builds a quick tier: started first (tests/conftest.py)
 def test_compiled_and_pure_agree(tmp_path: Path) -> None:
     """Ten virtual seconds of the whole system (drivers, sensors, estimator, controllers,
     px4io and the IO, logger with the raw sensors), compiled and pure: same log bytes; and

@@ -3,7 +3,7 @@ the estimator, the commander, the land detector and the companion (publishing th
 every 4 ms, the 250 Hz attitude rate), the module must forward the companion's rates while
 fresh and safe, fall back to the FMU's law on each failure at the stated time, latch, never
 let a NaN through, and switch both ways without a step. The whole system flying with the
-companion is tests/system/test_companion_flight.py.
+companion is tests/system/test_flight.py (seed 2).
 """
 
 from __future__ import annotations
