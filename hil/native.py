@@ -56,7 +56,7 @@ FAST_MODULES: tuple[str, ...] = (
     "board/kernel.py", "board/board.py", "board/endpoint.py", "board/gpio.py", "board/timer.py",
     "board/timer_regs.py",
     # the bottom package's quaternions: the estimator and controllers call them per sample
-    "common/quaternion.py", "common/units.py",
+    "common/quaternion.py", "common/units.py", "common/mathlib.py",
     "board/uart.py", "board/spi.py", "board/i2c.py",
     # the register file and the chips read at kHz rates (the IMU's sample engine first)
     "peripherals/regs.py", "peripherals/errors.py", "peripherals/st_spi.py",

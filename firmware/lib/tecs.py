@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from typing import Final
+from common.mathlib import constrain
 from common.units import G0_M_S2
 
 __all__ = ["TAS_GATE_TIMEOUT_S", "TAS_INNOV_GATE_M_S", "Tecs", "TecsParams", "TecsStatus"]
@@ -113,10 +114,6 @@ class TecsStatus:
     climbout: bool = False
     airspeed_valid: bool = True
     airspeed_gated: bool = False
-
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else (hi if x > hi else x)
 
 
 class Tecs:
@@ -206,7 +203,7 @@ class Tecs:
         stall speed is one): they are multiplied by ``eas2tas`` (the airspeed module's true
         over indicated) before use."""
         p = self.p
-        dt = _clamp(dt, 0.001, 0.2)
+        dt = constrain(dt, 0.001, 0.2)
         k = eas2tas if math.isfinite(eas2tas) and 0.5 < eas2tas < 2.0 else 1.0
         self._update_airspeed(dt, tas_m_s, accel_x_m_s2, airspeed_valid, k)
         # fly on the measured airspeed only while it is valid and plausible
@@ -234,7 +231,7 @@ class Tecs:
 
         # airspeed demand: limits, climb-out at the minimum, rate limited by the throttle range
         v_min, v_max = p.airspeed_min_m_s * k, max(p.airspeed_max_m_s, p.airspeed_min_m_s) * k
-        tas_sp = _clamp((tas_sp_m_s if math.isfinite(tas_sp_m_s) else p.airspeed_trim_m_s) * k,
+        tas_sp = constrain((tas_sp_m_s if math.isfinite(tas_sp_m_s) else p.airspeed_trim_m_s) * k,
                         v_min, v_max)
         if climbout:
             tas_sp = v_min
@@ -242,25 +239,25 @@ class Tecs:
             tas_sp = self.tas_state if airspeed_valid else p.airspeed_trim_m_s * k
         vel_rate_max = 0.5 * ste_rate_max / tas
         vel_rate_min = 0.5 * ste_rate_min / tas
-        self.tas_sp_adj = _clamp(tas_sp, self.tas_sp_adj + vel_rate_min * dt,
+        self.tas_sp_adj = constrain(tas_sp, self.tas_sp_adj + vel_rate_min * dt,
                                  self.tas_sp_adj + vel_rate_max * dt)
-        tas_rate_sp = _clamp((self.tas_sp_adj - self.tas_state) / max(p.tas_error_tc_s, 0.1),
+        tas_rate_sp = constrain((self.tas_sp_adj - self.tas_state) / max(p.tas_error_tc_s, 0.1),
                              vel_rate_min, vel_rate_max)
 
         # height demand: followed at most at the climb/sink limits
         prev = self.hgt_sp_adj
-        self.hgt_sp_adj = _clamp(hgt_sp_m, prev - p.sink_max_m_s * dt, prev + p.climb_max_m_s * dt)
+        self.hgt_sp_adj = constrain(hgt_sp_m, prev - p.sink_max_m_s * dt, prev + p.climb_max_m_s * dt)
         # never further ahead of the aircraft than one time constant at the rate limits: a
         # demand the aircraft cannot follow must not build up an energy error it cannot fly
         tc_h = alt_tc_s if alt_tc_s is not None else p.alt_error_tc_s
-        self.hgt_sp_adj = _clamp(self.hgt_sp_adj, altitude_m - p.sink_max_m_s * tc_h,
+        self.hgt_sp_adj = constrain(self.hgt_sp_adj, altitude_m - p.sink_max_m_s * tc_h,
                                  altitude_m + p.climb_max_m_s * tc_h)
         if climbout and hgt_sp_m > altitude_m:
             # climbing out faster than the ramp: the demand keeps up with the aircraft, so
             # that the end of the climb-out does not find it far below and push the nose down
             self.hgt_sp_adj = max(self.hgt_sp_adj, altitude_m)
         ramp_rate = (self.hgt_sp_adj - prev) / dt
-        hgt_rate_sp = _clamp((self.hgt_sp_adj - altitude_m) / max(tc_h, 0.1)
+        hgt_rate_sp = constrain((self.hgt_sp_adj - altitude_m) / max(tc_h, 0.1)
                              + p.hgt_rate_ff * ramp_rate, -p.sink_max_m_s, p.climb_max_m_s)
 
         # underspeed: not enough energy to keep flying at any pitch
@@ -275,7 +272,7 @@ class Tecs:
         ske_rate_sp, ske_rate = tas * tas_rate_sp, tas * self.tas_rate_state
 
         # weights: 0 = height only, 2 = speed only
-        sw = _clamp(speed_weight if speed_weight is not None else p.speed_weight, 0.0, 2.0)
+        sw = constrain(speed_weight if speed_weight is not None else p.speed_weight, 0.0, 2.0)
         if not measured:
             sw = 0.0
         if self.underspeed or (climbout and measured):
@@ -307,7 +304,7 @@ class Tecs:
         s = self.status
         # the extra drag of a banked turn (load factor - 1) wants more total energy rate
         cos_r = max(math.cos(roll), 0.1)
-        ste_rate_sp = _clamp(ste_rate_sp, ste_rate_min, ste_rate_max) \
+        ste_rate_sp = constrain(ste_rate_sp, ste_rate_min, ste_rate_max) \
             + p.roll_to_throttle * (1.0 / cos_r - 1.0)
         ste_rate_error = ste_rate_sp - ste_rate
         s.ste_error, s.ste_rate_error = ste_error, ste_rate_error
@@ -324,12 +321,12 @@ class Tecs:
             if measured:
                 # integrator bounded by the room the P and feed-forward terms leave (PX4's)
                 integ = self.throttle_integ + ste_error * p.integ_gain * dt * k
-                self.throttle_integ = _clamp(integ, thr_min - unc, max(thr_max - unc,
+                self.throttle_integ = constrain(integ, thr_min - unc, max(thr_max - unc,
                                                                        thr_min - unc))
             # without airspeed the integrator is frozen (PX4 TECSControl): the throttle is the
             # cruise throttle and the height's feed-forward and feedback, nothing that winds up
             thr = unc + self.throttle_integ
-        self.throttle_sp = _clamp(thr, thr_min, thr_max)
+        self.throttle_sp = constrain(thr, thr_min, thr_max)
         self.last_throttle = self.throttle_sp
 
     def _pitch(self, dt: float, seb_error: float, seb_rate_sp: float, seb_rate: float,
@@ -353,11 +350,11 @@ class Tecs:
         elif unc < pitch_min:
             integ = max(integ, min(self.pitch_integ, pitch_min * gain_inv - correction))
         # and alone it never asks for more than the pitch limits
-        self.pitch_integ = _clamp(integ, integ_lo, integ_hi)
+        self.pitch_integ = constrain(integ, integ_lo, integ_hi)
         integ = self.pitch_integ
-        pitch = _clamp((correction + integ) / gain_inv, pitch_min, pitch_max)
+        pitch = constrain((correction + integ) / gain_inv, pitch_min, pitch_max)
         # pitch rate limit from the vertical acceleration limit
         d = p.vert_accel_max_m_s2 / tas * dt
-        pitch = _clamp(pitch, self.last_pitch_sp - d, self.last_pitch_sp + d)
-        self.pitch_sp = _clamp(pitch, pitch_min, pitch_max)
+        pitch = constrain(pitch, self.last_pitch_sp - d, self.last_pitch_sp + d)
+        self.pitch_sp = constrain(pitch, pitch_min, pitch_max)
         self.last_pitch_sp = self.pitch_sp

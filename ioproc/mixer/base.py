@@ -23,11 +23,6 @@ def zero_source(group: int, index: int) -> float:
     return 0.0
 
 
-def constrain(value: float, lo: float, hi: float) -> float:
-    """PX4's constrain(): NaN falls through both tests and stays NaN, like the C code."""
-    return lo if value < lo else (min(value, hi))
-
-
 def fetch(source: ControlSource, group: int, index: int) -> float:
     """One input; an unavailable control leaves E14's variable uninitialised - we model 0."""
     value = source(group, index)

@@ -24,7 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-from ioproc.mixer.base import ControlSource, Mixer, constrain, fetch
+from common.mathlib import constrain
+from ioproc.mixer.base import ControlSource, Mixer, fetch
 from ioproc.protocol import ERA, Era
 
 _S: Final = 0.707107

@@ -35,6 +35,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
+from common.mathlib import constrain
 from firmware.lib.l1 import wrap_pi
 from firmware.modules.fw_att_control.airspeed_input import AirspeedInput
 from firmware.modules.fw_att_control.ecl import (
@@ -73,10 +74,6 @@ MODE_MANUAL: Final = 1
 MODE_STABILIZED: Final = 2
 MODE_AUTO: Final = 3
 MODE_ACRO: Final = 4
-
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else (hi if x > hi else x)
 
 
 class FwAttControlModule(WorkItemModule):
@@ -230,7 +227,7 @@ class FwAttControlModule(WorkItemModule):
         man = self.manual
         self.roll_sp = man.roll * self.man_r_max + self.rsp_off
         self.pitch_sp = -man.pitch * self.man_p_max + self.psp_off
-        self.throttle_sp = _clamp(0.5 * (man.throttle + 1.0), 0.0, 1.0)
+        self.throttle_sp = constrain(0.5 * (man.throttle + 1.0), 0.0, 1.0)
         self.wheel = False
         m = self.att_sp_msg
         m.timestamp = self.platform.hrt.absolute_time()
@@ -252,8 +249,8 @@ class FwAttControlModule(WorkItemModule):
         m.timestamp_sample = t_sample
         c = m.control
         tr, tp, ty = self.trim
-        c[0], c[1], c[2] = _clamp(r + tr, -1.0, 1.0), _clamp(p + tp, -1.0, 1.0), \
-            _clamp(y + ty, -1.0, 1.0)
+        c[0], c[1], c[2] = constrain(r + tr, -1.0, 1.0), constrain(p + tp, -1.0, 1.0), \
+            constrain(y + ty, -1.0, 1.0)
         c[3] = t if self.armed else 0.0
         if self.vtol:
             if self.pub_virtual is None:
@@ -281,15 +278,15 @@ class FwAttControlModule(WorkItemModule):
             man = self.manual
             rs, ps, ys = self.man_sc
             self._reset_integrators()
-            self._publish(_clamp(man.roll * rs, -1.0, 1.0), _clamp(-man.pitch * ps, -1.0, 1.0),
-                          _clamp(man.yaw * ys, -1.0, 1.0),
-                          _clamp(0.5 * (man.throttle + 1.0), 0.0, 1.0), t)
+            self._publish(constrain(man.roll * rs, -1.0, 1.0), constrain(-man.pitch * ps, -1.0, 1.0),
+                          constrain(man.yaw * ys, -1.0, 1.0),
+                          constrain(0.5 * (man.throttle + 1.0), 0.0, 1.0), t)
             return
         if self.mode == MODE_STABILIZED:
             self._stabilized_setpoint()
         roll, pitch, yaw = q_to_euler(tuple(att.q))  # type: ignore[arg-type]
         v = self.airspeed.indicated_m_s if self.airspeed.valid else self.v_trim
-        v = _clamp(v, self.v_min, self.v_max)
+        v = constrain(v, self.v_min, self.v_max)
         scaler = self.v_trim / v
         if self.mode == MODE_ACRO:
             self._acro(scaler, dt, t)
@@ -297,14 +294,14 @@ class FwAttControlModule(WorkItemModule):
         if not self.have_sp:
             return
         # attitude loops: Euler rate setpoints
-        roll_sp = _clamp(self.roll_sp, -self.r_lim, self.r_lim)
-        pitch_sp = _clamp(self.pitch_sp, self.p_lim_min, self.p_lim_max)
-        roll_dot = _clamp((roll_sp - roll) / self.r_tc, -self.r_rmax, self.r_rmax)
-        pitch_dot = _clamp((pitch_sp - pitch) / self.p_tc, -self.p_rmax_neg, self.p_rmax_pos)
+        roll_sp = constrain(self.roll_sp, -self.r_lim, self.r_lim)
+        pitch_sp = constrain(self.pitch_sp, self.p_lim_min, self.p_lim_max)
+        roll_dot = constrain((roll_sp - roll) / self.r_tc, -self.r_rmax, self.r_rmax)
+        pitch_dot = constrain((pitch_sp - pitch) / self.p_tc, -self.p_rmax_neg, self.p_rmax_pos)
         # the turn rate of a bank is the true airspeed's (the scaler above is the dynamic
         # pressure's, i.e. the indicated airspeed's)
         v_true = (max(self.airspeed.true_m_s, self.v_min) if self.airspeed.valid else v)
-        yaw_dot = _clamp(coordinated_yaw_rate(roll, pitch, v_true), -self.y_rmax, self.y_rmax)
+        yaw_dot = constrain(coordinated_yaw_rate(roll, pitch, v_true), -self.y_rmax, self.y_rmax)
         p_sp, q_sp, r_sp = euler_rates_to_body(roll, pitch, roll_dot, pitch_dot, yaw_dot)
         # rate loops
         integrate = self.armed and not self.landed
@@ -313,16 +310,16 @@ class FwAttControlModule(WorkItemModule):
         u_p = self.pitch_loop.control(q_sp, q, scaler, dt, integrate)
         if self.wheel:
             # on the runway: hold the heading with the rudder (and the steered wheel)
-            w_sp = _clamp(wrap_pi(self.yaw_sp - yaw) / self.r_tc, -self.w_rmax, self.w_rmax)
-            u_y = _clamp(self.wr_ff * w_sp + self.wr_p * (w_sp - r), -1.0, 1.0)
+            w_sp = constrain(wrap_pi(self.yaw_sp - yaw) / self.r_tc, -self.w_rmax, self.w_rmax)
+            u_y = constrain(self.wr_ff * w_sp + self.wr_p * (w_sp - r), -1.0, 1.0)
             self.yaw_loop.reset()
         else:
             u_y = self.yaw_loop.control(r_sp, r, scaler, dt, integrate)
         if self.mode == MODE_STABILIZED:
-            u_y = _clamp(u_y + self.manual.yaw * self.man_sc[2], -1.0, 1.0)
+            u_y = constrain(u_y + self.manual.yaw * self.man_sc[2], -1.0, 1.0)
         if not self.armed:
             self._reset_integrators()
-        self._publish(u_r, u_p, u_y, _clamp(self.throttle_sp, 0.0, 1.0), t)
+        self._publish(u_r, u_p, u_y, constrain(self.throttle_sp, 0.0, 1.0), t)
         m = self.rates_msg
         m.timestamp = now
         m.roll, m.pitch, m.yaw = p_sp, q_sp, r_sp
@@ -340,7 +337,7 @@ class FwAttControlModule(WorkItemModule):
         self._publish(self.roll_loop.control(p_sp, p, scaler, dt, integrate),
                       self.pitch_loop.control(q_sp, q, scaler, dt, integrate),
                       self.yaw_loop.control(r_sp, r, scaler, dt, integrate),
-                      _clamp(0.5 * (man.throttle + 1.0), 0.0, 1.0), t_sample)
+                      constrain(0.5 * (man.throttle + 1.0), 0.0, 1.0), t_sample)
         m = self.rates_msg
         m.timestamp = self.platform.hrt.absolute_time()
         m.roll, m.pitch, m.yaw = p_sp, q_sp, r_sp

@@ -34,6 +34,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final
 
+from common.mathlib import constrain
 from firmware.lib.l1 import L1Control, wrap_pi
 from firmware.lib.tecs import Tecs, TecsParams
 from firmware.modules.fw_att_control.airspeed_input import AirspeedInput
@@ -79,10 +80,6 @@ _CLIMBOUT_ROLL: Final = 15.0 * _D2R
 _TKO_NEAR_M: Final = 50.0
 #: stick deadzone of the altitude and position modes
 _DEADZONE: Final = 0.05
-
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else (hi if x > hi else x)
 
 
 class FwPosControlL1Module(WorkItemModule):
@@ -433,7 +430,7 @@ class FwPosControlL1Module(WorkItemModule):
             self.l1.navigate_waypoints(start, line_end, st.pos, st.vel, st.yaw)
         self._tecs(st, self._alt_sp(cur, st), v["FW_AIRSPD_TRIM"], thr_min, thr_max, thr_cruise,
                    p_min, p_max, climbout=climbout)
-        roll = _clamp(self.l1.nav_roll(), -roll_lim, roll_lim)
+        roll = constrain(self.l1.nav_roll(), -roll_lim, roll_lim)
         return _Out(roll, self.tecs.pitch_sp, self.l1.nav_bearing_rad, self.tecs.throttle_sp,
                     target, wheel=wheel)
 
@@ -503,7 +500,7 @@ class FwPosControlL1Module(WorkItemModule):
             self._tecs(st, hgt_sp, v_app, thr_min, thr_max, v["FW_THR_CRUISE"], p_min, p_max)
         if self.tecs_mode == 0:
             self.tecs_mode = 3
-        roll = _clamp(self.l1.nav_roll(), -roll_lim, roll_lim)
+        roll = constrain(self.l1.nav_roll(), -roll_lim, roll_lim)
         if self.flaring:
             # from the flare on, the rudder (and on the ground the steered wheel) holds the
             # runway's bearing: ailerons cannot steer a rollout
@@ -528,9 +525,9 @@ class FwPosControlL1Module(WorkItemModule):
         pitch_stick = -float(man.pitch)       # stick back (negative) = climb
         if abs(pitch_stick) > _DEADZONE:
             rate = pitch_stick * (v["FW_T_CLMB_MAX"] if pitch_stick > 0 else v["FW_T_SINK_MAX"])
-            self.hold_alt = _clamp(self.hold_alt + rate * st.dt, st.alt - 15.0, st.alt + 15.0)
+            self.hold_alt = constrain(self.hold_alt + rate * st.dt, st.alt - 15.0, st.alt + 15.0)
         # airspeed: throttle stick, centre = trim
-        s = _clamp(0.5 * (float(man.throttle) + 1.0), 0.0, 1.0)
+        s = constrain(0.5 * (float(man.throttle) + 1.0), 0.0, 1.0)
         lo, trim, hi = v["FW_AIRSPD_MIN"], v["FW_AIRSPD_TRIM"], v["FW_AIRSPD_MAX"]
         v_sp = lo + (trim - lo) * s * 2.0 if s < 0.5 else trim + (hi - trim) * (s - 0.5) * 2.0
         sticks_centred = abs(float(man.roll)) < _DEADZONE and abs(float(man.yaw)) < _DEADZONE
