@@ -42,7 +42,7 @@ import numpy as np
 from board.gpio import Pin
 from board.kernel import PRIO_HW, Event, Kernel
 from board.spi import SpiTarget
-from firmware.lib.rotation import board_to_sensor
+from common.rotation import board_to_sensor
 from peripherals.errors import ImuErrorModel
 from peripherals.faults import FaultState
 from peripherals.regs import RegisterFile

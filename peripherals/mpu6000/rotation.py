@@ -1,5 +1,5 @@
-"""Mounting of the chip: the shared PX4 rotation table (firmware/lib/rotation.py)."""
+"""Mounting of the chip: the shared PX4 rotation table (common/rotation.py)."""
 
-from firmware.lib.rotation import PX4_ROTATIONS, Matrix3, board_to_sensor, euler_matrix
+from common.rotation import PX4_ROTATIONS, Matrix3, board_to_sensor, euler_matrix
 
 __all__ = ["PX4_ROTATIONS", "Matrix3", "board_to_sensor", "euler_matrix"]

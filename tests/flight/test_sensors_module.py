@@ -11,7 +11,7 @@ import math
 import pytest
 
 from fmu.board import FmuV2Board
-from firmware.lib.rotation import rotation_matrix
+from common.rotation import rotation_matrix
 from firmware.modules.sensors import PARAMS, SensorsModule, isa_altitude_m
 from firmware.platform.params import Params
 from firmware.platform.uorb import Subscription

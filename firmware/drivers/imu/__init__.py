@@ -2,11 +2,11 @@
 
 A rotation enum names how a sensor is mounted; its matrix takes sensor axes to board axes
 (PX4 ``rotation.h``: roll, pitch, yaw in degrees, Z-Y-X order). The table lives in
-``firmware/lib/rotation.py``, shared with the device models.
+``common/rotation.py``, shared with the device models.
 """
 
 from __future__ import annotations
 
-from firmware.lib.rotation import PX4_ROTATIONS, rotation_matrix
+from common.rotation import PX4_ROTATIONS, rotation_matrix
 
 __all__ = ["PX4_ROTATIONS", "rotation_matrix"]

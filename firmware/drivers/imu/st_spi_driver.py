@@ -31,7 +31,7 @@ from typing import Any, Final
 from mypy_extensions import mypyc_attr
 
 from firmware.drivers.device import SensorDriver, SpiDeviceHandle
-from firmware.lib.rotation import rotation_matrix
+from common.rotation import rotation_matrix
 from firmware.platform import Platform
 from firmware.platform.perf import PC_COUNT, PerfCounter
 

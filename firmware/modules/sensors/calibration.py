@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Final
 
-from firmware.lib.rotation import euler_matrix, rotation_matrix
+from common.rotation import euler_matrix, rotation_matrix
 
 __all__ = ["Calibration", "Matrix", "board_rotation"]
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-from firmware.lib.rotation import euler_matrix
+from common.rotation import euler_matrix
 from firmware.modules.commander.calibration import messages as msg
 from firmware.modules.commander.calibration.common import (
     CRITICAL,

@@ -3,7 +3,8 @@
 A rotation enum's matrix takes sensor axes to board axes (roll, pitch, yaw in degrees, Z-Y-X
 Euler order). Drivers apply it to raw data (:func:`rotation_matrix`); device models apply its
 transpose to the board's physical quantities (:func:`board_to_sensor`). One table serves both,
-so a model and its driver can never disagree about a mounting.
+so a model and its driver can never disagree about a mounting: it lives in the bottom package,
+which device models and firmware may both import (a model importing firmware was the smell).
 """
 
 
