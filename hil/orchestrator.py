@@ -106,6 +106,9 @@ class Orchestrator(WireFaults):
         self._routes: dict[tuple[str, str], list[tuple[str, str]]] = {}
         #: faults on wires: (board, output port) -> what the wire does to each record
         self._wire_faults: dict[tuple[str, str], WireFault] = {}
+        #: how a quantum's records are routed: the plain :meth:`_route_all`, or while a wire has
+        #: a fault :meth:`_route_all_faulty` (hil/wire_faults.py), so a healthy run pays nothing
+        self._route_outputs: Callable[[str, list], None] = self._route_all
         self._trace = TraceWriter(trace_path, quantum_ns, self.specs) if trace_path else None
         self._wall_start: float | None = None
         self._wall_elapsed = 0.0
@@ -246,7 +249,7 @@ class Orchestrator(WireFaults):
         if self._trace is not None:
             self._trace.write(name, until, inputs, outputs)
         if outputs:
-            self._route_all(name, outputs)
+            self._route_outputs(name, outputs)
             if name in self._request_boards:
                 for rec in outputs:
                     if rec[0] == "reboot" and name in self._reboot_boards:
@@ -336,7 +339,7 @@ class Orchestrator(WireFaults):
             world.run_until(until)
             out = world.outputs(until)
             if out:
-                self._route_all(WORLD, out)
+                self._route_outputs(WORLD, out)
 
     def _route_all(self, board: str, records: list) -> None:
         """:meth:`_route` for a list of records (the per-quantum path, inlined)."""

@@ -1,15 +1,15 @@
 """Faults on the orchestrator's wires: cut, mended, or carrying records through a fault.
 
 A mixin of :class:`hil.orchestrator.Orchestrator`, kept apart because a healthy run never
-touches it: while no wire has a fault the orchestrator routes with its plain ``_route_all``;
-the first fault swaps in :meth:`WireFaults._route_all_faulty` on the instance, and the last
-one removed swaps it out. The fault catalogue (hil/faults) acts on wires through these
+touches it: while no wire has a fault the orchestrator routes a quantum's records with its
+plain ``_route_all``; the first fault sets its ``_route_outputs`` to
+:meth:`WireFaults._route_all_faulty`, and the last one removed sets it back. The fault catalogue (hil/faults) acts on wires through these
 methods, never on a board's state.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 from board.wiring import WORLD
 
@@ -25,6 +25,7 @@ class WireFaults:
     # what the orchestrator provides
     _routes: dict[tuple[str, str], list[tuple[str, str]]]
     _wire_faults: dict[tuple[str, str], WireFault]
+    _route_outputs: Callable[[str, list], None]
     handles: dict[str, BoardHandle]
     dead: dict[str, str]
     t_ns: int
@@ -50,7 +51,7 @@ class WireFaults:
             else:
                 clean.extend(fault.carry(rec))
         if clean:
-            type(self)._route_all(self, board, clean)
+            self._route_all(board, clean)
 
     def _wire(self, board: str, port: str) -> tuple[str, str]:
         key = (board, port)
@@ -77,10 +78,7 @@ class WireFaults:
             self._wire_faults.pop(key, None)
         else:
             self._wire_faults[key] = fault
-        if self._wire_faults:
-            self._route_all = self._route_all_faulty  # type: ignore[method-assign]
-        else:
-            self.__dict__.pop("_route_all", None)
+        self._route_outputs = self._route_all_faulty if self._wire_faults else self._route_all
 
     def cut_wire(self, board: str, port: str) -> None:
         """The wire leaving ``board.port`` breaks now: it carries nothing more. What the far end
