@@ -39,7 +39,7 @@ from board.uart import Uart, UartConfig
 from companion.disk import PARAMS_FILE, FilePartition
 from companion.spec import COMPANION_MODULES, COMPANION_RPI4, CONSOLE_UART
 from firmware.platform import Platform
-from firmware.shell.line_editor import LineEditor
+from firmware.shell.serial_console import SerialConsole
 
 if TYPE_CHECKING:
     from board.specs import BoardSpecData
@@ -80,7 +80,6 @@ class CompanionBoard(Board):
         self.system: System | None = None
         self.shell: Shell | None = None
         self._ctl_shell: Shell | None = None
-        self._console_editor = LineEditor()
         self.reboot_requested = False
         self.uarts = {u.name: Uart(k, f"{name}.{u.name}", UartConfig(baud=u.baud),
                                    rx_buffer_size=_TTY_RX_BYTES) for u in spec.uarts}
@@ -182,7 +181,7 @@ class CompanionBoard(Board):
                 params.set(name, value, notify=False)
             params.save()
         self.shell = shell = Shell(system, output=to_console)
-        console.on_rx(self._console_rx)
+        SerialConsole(console).attach(shell)
         shell.run_file(RC_COMPANION)
         for line in self.startup:
             shell.execute(line)
@@ -193,20 +192,6 @@ class CompanionBoard(Board):
         self.reboot_requested = True
         k = self.kernel
         k.call_later(100_000_000, lambda: self._emit_reboot(k.now_ns, int(to_bootloader)))
-
-    def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
-        """A byte typed on the serial console: line editing, and each line run on the shell."""
-        echo, line = self._console_editor.key(byte)
-        if echo:
-            self.uarts[CONSOLE_UART].write(echo)
-        if line is not None:
-            k = self.kernel
-            k.call_at(k.now_ns, self._console_exec, line, priority=200)
-
-    def _console_exec(self, line: str) -> None:
-        if self.shell is not None and line.strip():
-            self.shell.execute(line)
-        self.uarts[CONSOLE_UART].write(b"nsh> ")
 
     # -- control calls (tests, tools) -------------------------------------------------------------
 

@@ -70,7 +70,7 @@ from board.specs import (
 from board.uart import Uart, UartConfig
 from common.truth import TRUTH_FIELDS
 from firmware.platform import Platform
-from firmware.shell.line_editor import LineEditor
+from firmware.shell.serial_console import SerialConsole
 from peripherals.errors import rng_for
 from peripherals.physics import Environment
 
@@ -122,7 +122,6 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         self.shell: Shell | None = None
         self._param_overrides = dict(params or {})
         self._host_clock = host_clock
-        self._console_editor = LineEditor()
         self._ctl_shell: Shell | None = None
         self.reboot_requested = False
         self.spi = {b.name: SpiBus(k, b.name, pclk_hz=b.pclk_hz) for b in spec.spi}
@@ -321,7 +320,7 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
             for name, value in self._param_overrides.items():
                 params.set(name, value, notify=False)
         self.shell = Shell(system, output=to_console)
-        console.on_rx(self._console_rx)
+        SerialConsole(console).attach(self.shell)
         romfs.boot(self.shell)
 
     def _reboot_request(self, to_bootloader: bool) -> None:
@@ -344,23 +343,6 @@ class FmuV2Board(FmuPwmSide, FmuCanSide, Board):
         handler = self.failure_reply_handler
         if handler is not None:
             handler(t_ns, payload)
-
-    def _console_rx(self, t_ns: int, byte: int, flags: int) -> None:
-        """Bytes typed on the console UART: NuttX readline's line editing (the shell's
-        :class:`~firmware.shell.line_editor.LineEditor`, bounded, UTF-8), and each complete
-        line run on the shell."""
-        echo, line = self._console_editor.key(byte)
-        if echo:
-            self.uarts["UART7"].write(echo)
-        if line is not None:
-            k = self.kernel
-            # The shell is a thread: run the command after this interrupt, not inside it.
-            k.call_at(k.now_ns, self._console_exec, line, priority=200)
-
-    def _console_exec(self, line: str) -> None:
-        if self.shell is not None and line.strip():
-            self.shell.execute(line)
-        self.uarts["UART7"].write(b"nsh> ")
 
     def spi_handle(self, device: str) -> SpiHandle:
         for bus in self.spec.spi:
