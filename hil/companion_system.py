@@ -31,6 +31,8 @@ COMPANION_ATT_FMU_PARAMS: dict[str, int] = {"MC_ATT_IMPL": 2}
 COMPANION_ATT_STARTUP: tuple[str, ...] = ("mc_att_control start",)
 #: the companion's own start-up lines for ``ros``
 COMPANION_ROS_STARTUP: tuple[str, ...] = ("ros_bridge start",)
+#: the TELEM2 link's baud (SER_TEL2_BAUD's default, the FTDI cable's rate on the companion)
+LINK_BAUD = 921_600
 
 
 def _declared(params: dict[str, int]) -> dict[str, int]:
@@ -87,8 +89,8 @@ def companion_summary(orch: Any) -> dict[str, Any] | None:
         return None
     keys = ("link_ok", "link_lost_count", "tx_frames", "rx_frames", "tx_dropped",
             "rx_crc_errors", "rx_truncated", "rx_unknown_id", "rx_bad_size",
-            "rx_garbage_bytes", "rx_lost")
-    out: dict[str, Any] = {"alive": COMPANION not in orch.dead}
+            "rx_garbage_bytes", "rx_lost", "tx_bytes", "rx_bytes")
+    out: dict[str, Any] = {"alive": COMPANION not in orch.dead, "t_s": orch.t_ns / 1e9}
     for side in ("fmu", COMPANION):
         st = None
         if side not in orch.dead:
@@ -109,7 +111,13 @@ def format_companion(summary: dict[str, Any]) -> str:
             continue
         errors = sum(int(st.get(k) or 0) for k in ("rx_crc_errors", "rx_truncated",
                                                    "rx_unknown_id", "rx_bad_size"))
-        parts.append(f"{side}: {st.get('tx_frames')} frames sent, {st.get('rx_frames')} "
+        load = ""
+        t_s = float(summary.get("t_s") or 0.0)
+        if t_s > 0 and st.get("tx_bytes") is not None:
+            # 8N1: ten bits on the wire per byte
+            rate = int(st["tx_bytes"]) / t_s
+            load = f" ({rate / 1000:.1f} kB/s, {100 * rate * 10 / LINK_BAUD:.0f} % of the link)"
+        parts.append(f"{side}: {st.get('tx_frames')} frames sent{load}, {st.get('rx_frames')} "
                      f"received, {errors} bad, {st.get('rx_lost')} lost, link "
                      f"{'up' if st.get('link_ok') else 'down'}")
     mods = ", ".join(summary.get("modules") or []) or "none"
