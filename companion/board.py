@@ -163,7 +163,7 @@ class CompanionBoard(Board):
                                       host_clock=self._host_clock, console=to_console, hw=self)
         path = self.params_path()
         partition: Any = FilePartition(path) if path is not None else MemoryPartition(16384)
-        storage = ParamStorage(partition)
+        storage = ParamStorage(partition, medium="parameter file")
         params = Params(p, list(system_params.PARAMS) + registry.param_defs(), storage)
         system.params = params
         if self._param_overrides:

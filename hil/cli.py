@@ -48,6 +48,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if airframe is None:
         return 2
     args.airframe = airframe
+    if args.companion_att:
+        from hil.companion_system import check_companion_att
+
+        try:
+            check_companion_att(airframe)
+        except ValueError as exc:
+            print(f"hil run: {exc}", file=sys.stderr)
+            return 2
     honour_sigint()  # stop on SIGINT even when started in the background by a script
     cfg = FlightConfig(seed=args.seed, out_dir=args.out, airframe=args.airframe,
                        quantum_ns=int(args.quantum_us * 1000), speed=args.speed,
@@ -79,7 +87,8 @@ def _cmd_shell(args: argparse.Namespace) -> int:
             print("hil shell: no running emulator with a companion computer found (start one "
                   "with 'hil fly --companion'), or give --port", file=sys.stderr)
             return 1
-    return shell_client.main(port, args.command, args.timeout)
+    board = "companion" if args.board == "companion" else "FMU"
+    return shell_client.main(port, args.command, args.timeout, board=board)
 
 
 def _cmd_fly(args: argparse.Namespace) -> int:
@@ -364,14 +373,23 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("params", help="the parameter reference (markdown) from the metadata")
     p.add_argument("--out", default=None, help="write to this file instead of stdout")
     p.set_defaults(func=_cmd_params)
+    for sp in sub.choices.values():
+        sp.set_defaults(subparser=sp)  # a wrong option is reported with its command's usage
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    words = sys.argv[1:] if argv is None else list(argv)
+    if words[:1] == ["rosnode"]:
+        # its own command line (module arguments and options after the module's name, -h)
+        return __import__("hil.rosnode").rosnode.main(words[1:])
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
     if not getattr(args, "func", None):
-        args = parser.parse_args(["run", *(argv or [])])
+        args, extra = parser.parse_known_args(["run", *(argv or [])])
+    if extra:
+        sp = getattr(args, "subparser", parser)
+        sp.error(f"unrecognized arguments: {' '.join(extra)}")
     if argv is None and args.command not in ("native", "airframes"):
         # The `hil` command (not a test calling main([...])) runs the compiled tier (hil native
         # build) when it is there and matches the sources; this must come before anything

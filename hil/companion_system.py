@@ -20,6 +20,7 @@ from typing import Any
 from board.wiring import COMPANION, COMPANION_WIRES, Wire
 
 __all__ = ["COMPANION_ATT_FMU_PARAMS", "COMPANION_FMU_PARAMS", "COMPANION_ATT_STARTUP",
+           "check_companion_att",
            "COMPANION_ROS_STARTUP",
            "add_companion", "companion_summary", "format_companion"]
 
@@ -33,6 +34,18 @@ COMPANION_ATT_STARTUP: tuple[str, ...] = ("mc_att_control start",)
 COMPANION_ROS_STARTUP: tuple[str, ...] = ("ros_bridge start",)
 #: the TELEM2 link's baud (SER_TEL2_BAUD's default, the FTDI cable's rate on the companion)
 LINK_BAUD = 921_600
+
+
+def check_companion_att(airframe: int) -> None:
+    """``companion_att`` moves the multicopter attitude law (MC_ATT_IMPL 2): refused, with the
+    reason, for an airframe of another class (a plane has no multicopter attitude law to move;
+    a VTOL's was not tried). An id without an airframe file (a test's) is left alone."""
+    from hil.airframes import all_airframes
+
+    frame = next((f for f in all_airframes() if f.id == airframe), None)
+    if frame is not None and frame.vehicle_class != "multicopter":
+        raise ValueError(f"the attitude law on the companion (companion_att) is the multicopter's;"
+                         f" airframe {frame.id} ({frame.name}) is a {frame.vehicle_class}")
 
 
 def _declared(params: dict[str, int]) -> dict[str, int]:
@@ -67,6 +80,7 @@ def add_companion(cfg: Any, boards: dict[str, Any], fmu_params: dict[str, Any],
     wanted = dict(COMPANION_FMU_PARAMS)
     startup: tuple[str, ...] = ()
     if cfg.companion_att:
+        check_companion_att(cfg.airframe)
         wanted.update(COMPANION_ATT_FMU_PARAMS)
         startup = COMPANION_ATT_STARTUP
     if cfg.ros:  # its topics to and from the ROS edge (hil.ros.link) over the "ros" port

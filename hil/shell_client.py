@@ -94,7 +94,8 @@ def run_command(port: int, command: str, timeout_s: float = 30.0) -> str:
     return text.replace("\r\n", "\n")
 
 
-def main(port: int | None = None, command: str | None = None, timeout_s: float = 30.0) -> int:
+def main(port: int | None = None, command: str | None = None, timeout_s: float = 30.0,
+         board: str = "FMU") -> int:
     if port is None:
         info = discover()
         if info is None:
@@ -106,19 +107,19 @@ def main(port: int | None = None, command: str | None = None, timeout_s: float =
         if command is not None:
             sys.stdout.write(run_command(port, command, timeout_s))
             return 0
-        return _interactive(port)
+        return _interactive(port, board)
     except (ConnectionError, OSError, TimeoutError) as exc:
         print(f"hil shell: console on 127.0.0.1:{port}: {exc}", file=sys.stderr)
         return 1
 
 
-def _interactive(port: int) -> int:
+def _interactive(port: int, board: str = "FMU") -> int:
     sock = socket.create_connection(("127.0.0.1", port))
     sock.setblocking(False)
     sel = selectors.DefaultSelector()
     sel.register(sock, selectors.EVENT_READ, "sock")
     sel.register(sys.stdin, selectors.EVENT_READ, "stdin")
-    print(f"hil shell: connected to the FMU console on 127.0.0.1:{port} "
+    print(f"hil shell: connected to the {board} console on 127.0.0.1:{port} "
           f"(end of input to leave)", file=sys.stderr)
     sock.sendall(b"\r")
     try:

@@ -169,10 +169,12 @@ class ParamStorage:
     else (a torn save, damage, a partition this store never wrote) is reported and left alone;
     it never hides the other slot's good copy."""
 
-    def __init__(self, partition: Partition) -> None:
+    def __init__(self, partition: Partition, medium: str = "FRAM") -> None:
         if partition.size < 2 * 64:
             raise ParamError(f"parameter partition of {partition.size} bytes is too small")
         self.part = partition
+        #: what holds the partition, as the boot messages name it (the FMU's FRAM, a disk file)
+        self.medium = medium
         self.slot_size = partition.size // 2
         self.sequence = 0
         self.last_slot: int | None = None
@@ -253,7 +255,7 @@ class ParamStorage:
             empty = [s for s, why in invalid.items() if why == _ERASED]
             return values, msg + ("; the other slot is empty" if empty else ""), "info"
         if not problems:
-            return None, "no parameters stored (erased FRAM); defaults loaded", "warn"
+            return None, f"no parameters stored (erased {self.medium}); defaults loaded", "warn"
         return None, f"parameter store corrupt ({'; '.join(problems)}); defaults loaded", "error"
 
     def save(self, values: dict[str, int | float]) -> tuple[bool, str]:

@@ -167,6 +167,11 @@ class SerialPort:
         return f"<SerialPort {self.device} {state}>"
 
 
+#: UART roles the board's own firmware holds: opening one would take a console's or a link's
+#: bytes from its owner (binary frames on nsh's console lock the shell out)
+RESERVED_ROLES: dict[str, str] = {"console": "nsh console", "io_link": "link to the IO"}
+
+
 def open_serial(system: Any, device: str, baud: int) -> SerialPort:
     """Open ``device`` (``/dev/ttyS2``) of the system's board at ``baud``: the UART comes from
     ``system.hw.uart_by_device``; a board without it raises :class:`SerialError`."""
@@ -174,4 +179,9 @@ def open_serial(system: Any, device: str, baud: int) -> SerialPort:
     uart = hw.uart_by_device(device) if hw is not None else None
     if uart is None:
         raise SerialError(f"no serial device {device} on this board")
+    spec = getattr(system, "board", None)
+    for u in getattr(spec, "uarts", ()):
+        if u.device == device and u.role in RESERVED_ROLES:
+            raise SerialError(f"{device} is the board's {RESERVED_ROLES[u.role]}, not free "
+                              "for a serial module")
     return SerialPort(system.platform, uart, device, baud)

@@ -67,6 +67,11 @@ def test_shell_answers(booted):
     assert rc == 0 and "COMPANION_RPI4" in text
     rc, text = b.ctl_shell("mc_att_control status")
     assert rc == 0 and "running" in text
+    # the bridge may not take the companion's own console (binary frames would lock nsh out)
+    assert b.ctl_shell("uorb_bridge stop")[0] == 0
+    rc, text = b.ctl_shell("uorb_bridge start -d /dev/ttyS0 -r companion")
+    assert rc != 0 and "/dev/ttyS0 is the board's nsh console" in text, text
+    assert b.ctl_shell("uorb_bridge start -d /dev/ttyUSB0 -b 921600 -r companion")[0] == 0
 
 
 def test_console_uart_runs_typed_lines(booted):

@@ -19,6 +19,23 @@ def test_cli_options():
         p.parse_args(["shell", "--board", "io"])
 
 
+def test_cli_refuses_what_cannot_work_with_the_command_s_own_usage(capsys):
+    from hil.cli import main
+
+    # the attitude law on the companion is the multicopter's
+    assert main(["run", "--companion-att", "--airframe", "plane"]) == 2
+    assert "airframe 2100 (standard_plane) is a fixedwing" in capsys.readouterr().err
+    # a misspelt option: the subcommand's usage, not the top level's
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--companoin"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: hil run ") and "unrecognized arguments: --companoin" in err
+    # hil rosnode takes its own command line, help included
+    assert main(["rosnode", "--help"]) == 0
+    assert "usage: hil rosnode MODULE" in capsys.readouterr().out
+
+
 def test_wiring_is_telem2_both_ways():
     assert [(w.src, w.dst) for w in COMPANION_WIRES] == [
         (("fmu", "telem2"), ("companion", "telem2")),

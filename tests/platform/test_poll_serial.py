@@ -310,12 +310,17 @@ def test_on_the_fmu_board_telem2_is_a_pollable_file():
     from firmware.system import System
 
     board = FmuV2Board(firmware="none")
-    system = System(board.platform, hw=board)
+    system = System(board.platform, hw=board, board=board.spec)
     kernel = board.kernel
     port = open_serial(system, "/dev/ttyS2", BAUD)
     assert port.uart is board.uarts["USART3"] and port.uart.config.baud == BAUD
     with pytest.raises(SerialError, match="no serial device /dev/ttyS7"):
         open_serial(system, "/dev/ttyS7", BAUD)
+    # what the board's own firmware holds is refused: nsh's console, the IO link
+    with pytest.raises(SerialError, match="/dev/ttyS5 is the board's nsh console"):
+        open_serial(system, "/dev/ttyS5", BAUD)
+    with pytest.raises(SerialError, match="/dev/ttyS4 is the board's link to the IO"):
+        open_serial(system, "/dev/ttyS4", BAUD)
     companion = Uart(kernel, "companion", CFG)
     connect(companion, port.uart)
     connect(port.uart, companion)
