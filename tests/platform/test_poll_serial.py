@@ -8,6 +8,8 @@ wakes a poller per 32 bytes, never per byte.
 from __future__ import annotations
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from board.kernel import NS_PER_MS, KernelError
 from board.uart import RecordingLink, Uart, UartConfig, connect
@@ -16,6 +18,7 @@ from firmware.platform.serial import (RX_DMA_HALF_BYTES, SERIAL_TX_BUFFER, Seria
 from firmware.platform.task import PollWaiter, Task
 from firmware.platform.uorb import Subscription
 from firmware.platform.workqueue import WorkItem
+from tests.fuzzing import fuzz
 
 BAUD = 921_600
 CFG = UartConfig(baud=BAUD)
@@ -360,3 +363,42 @@ def test_bytes_through_the_line_decoder_wake_the_same_way(platform, kernel, wire
     assert reads[3][2] > NS_PER_MS + sender.burst_ns(100)             # IDLE after the tail
     assert 3 * NS_PER_MS < reads[4][2] < 3 * NS_PER_MS + 3 * sender.frame_ns_ceil
     assert mine.breaks == 1
+
+
+@fuzz(60)
+@given(bursts=st.lists(st.tuples(st.integers(0, 3000), st.binary(min_size=1, max_size=200)),
+                       min_size=1, max_size=12))
+def test_fuzz_whatever_arrives_is_read_in_order_and_wakes_only_when_readable(bursts):
+    """Outside bytes in random bursts (gap in us before each, up to 200 bytes): a task polling
+    the port and reading what is there gets exactly the bytes sent, in order; every wake with
+    n > 0 finds bytes waiting; data wakes are at most one per 32 bytes plus one per burst."""
+    from board.kernel import Kernel
+    from firmware.platform import Platform
+
+    kernel = Kernel("fuzz")
+    platform = Platform(kernel)
+    peer = Uart(kernel, "peer", CFG)
+    mine = Uart(kernel, "USART3", UartConfig(baud=57_600), rx_buffer_size=4096)
+    connect(peer, mine)
+    port = SerialPort(platform, mine, "/dev/ttyS2", BAUD)
+    got = bytearray()
+    wakes = []
+
+    def main(task):
+        while True:
+            n = yield task.poll([port], timeout_ms=5)
+            waiting = port.in_waiting
+            wakes.append((n, waiting))
+            got.extend(port.read())
+
+    Task(platform, "reader", main).start()
+    t = 0
+    for gap_us, data in bursts:
+        t += gap_us * 1000 + CFG.burst_ns(len(data))  # one burst after the other on the line
+        kernel.call_at(t - CFG.burst_ns(len(data)), peer.write, data)
+    kernel.run(t + 20 * NS_PER_MS)
+    sent = b"".join(data for _, data in bursts)
+    assert bytes(got) == sent
+    assert all(waiting > 0 for n, waiting in wakes if n > 0)
+    data_wakes = sum(1 for n, _ in wakes if n > 0)
+    assert data_wakes <= len(sent) // RX_DMA_HALF_BYTES + len(bursts)
