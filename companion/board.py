@@ -38,6 +38,7 @@ from board.board import Board
 from board.uart import Uart, UartConfig
 from companion.disk import PARAMS_FILE, FilePartition
 from companion.spec import COMPANION_MODULES, COMPANION_RPI4, CONSOLE_UART
+from firmware.modules.ros_bridge.port import expose_ros_port
 from firmware.platform import Platform
 from firmware.shell.serial_console import SerialConsole
 
@@ -88,25 +89,9 @@ class CompanionBoard(Board):
                 self.expose_uart(u.port, self.uarts[u.name])
         # "ros": one value port both ways (the ROS edge, hil/ros, sits on the other end); the
         # ros_bridge module finds it as ``hw.ros_port``
-        self.ros_port = self._expose_ros()
+        self.ros_port = expose_ros_port(self)
         self._emit_reboot = self.expose_output("reboot")
-        self.ros_dropped = 0
-        self.boots = 0
         k.call_at(boot_ns, self.boot)
-
-    def _expose_ros(self) -> Any:
-        """The ``ros`` port as the ros_bridge module defines it (its ``RosPort``); in a tree
-        without that module, a port whose records are counted and dropped."""
-        try:
-            from firmware.modules.ros_bridge.port import expose_ros_port
-        except ImportError:
-            self._add_port("ros", "value", "inout")
-            self._inputs["ros"] = self._ros_unheard
-            return None
-        return expose_ros_port(self)
-
-    def _ros_unheard(self, t_ns: int, record: Any) -> None:
-        self.ros_dropped += 1
 
     # -- what firmware sees of the hardware (board.protocols.BoardHardware) ------------------
 
@@ -146,7 +131,6 @@ class CompanionBoard(Board):
         from firmware.shell import Shell
         from firmware.system import System
 
-        self.boots += 1
         p = self.platform
         registry = ModuleRegistry(None, self._modules)
         console = self.uarts[CONSOLE_UART]

@@ -50,7 +50,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable, Final
 
-from firmware.platform.msgdef import (PRIMITIVES, MessageDef, MessageRegistry, default_registry,
+from firmware.platform.msgdef import (MessageDef, MessageRegistry, default_registry,
                                       snake_to_camel)
 
 __all__ = ["PACKAGE", "ConversionError", "Converter", "GeneratedPackage", "cache_root",
